@@ -1,0 +1,1 @@
+"""Repository-wide pytest configuration (the peclet_verify plugin loads via its entry point)."""

@@ -1,0 +1,1 @@
+"""peclet.core: the geometry layer (CSG trees, evaluation, certificate, quadrature)."""

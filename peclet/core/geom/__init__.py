@@ -1,0 +1,16 @@
+"""Geometry core: CSG trees of signed-distance leaves over the flat encoding of DESIGN.md §2.
+
+>>> from peclet.core import geom
+>>> b = geom.SceneBuilder()
+>>> ball = b.add_leaf("sphere", [1.0])
+>>> float(b.eval_root(ball, [[2.0, 0.0, 0.0]])[0])
+1.0
+"""
+from .builder import SceneBuilder, as_points, decode, evaluate
+from .leaves import (DIFFERENCE, INTERSECTION, LEAF_NAMES, LEAVES_BY_KIND, LEAVES_BY_NAME,
+                     UNION, LeafSpec, leaf_spec)
+from .transforms import matrix_to_quat, quat_multiply, quat_to_matrix
+
+__all__ = ["SceneBuilder", "decode", "evaluate", "as_points", "LEAF_NAMES", "LEAVES_BY_KIND",
+           "LEAVES_BY_NAME", "LeafSpec", "leaf_spec", "UNION", "INTERSECTION", "DIFFERENCE",
+           "quat_to_matrix", "matrix_to_quat", "quat_multiply"]

@@ -1,0 +1,263 @@
+"""The scene query: phi of many placed trees, pruned by the certificate.
+
+The scene value at p is the minimum, over instances and their periodic images, of each
+instance's phi. Certified instances (Equation 1 holds for their ball) sit in a bounding-volume
+hierarchy of axis-aligned boxes around their balls; a subtree is skipped when the distance from
+p to its box exceeds the best value found so far. Uncertified instances ride an *always* list
+and are evaluated for every point. Since the pruned images provably exceed the minimum, and
+ties are broken by image index in both paths, the pruned query returns bitwise what the brute
+force returns.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from . import kernels as K
+from .builder import as_points
+from .program import concatenate
+from .transforms import quat_to_matrix, transform_ball
+
+_LEAF_SIZE = 4
+
+
+@njit(cache=True)
+def _image_phi(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, i, x, y, z, st):
+    """phi of image ``i`` at world point (x, y, z)."""
+    f = img_frame[i]
+    dx = x - f[0]
+    dy = y - f[1]
+    dz = z - f[2]
+    s = f[12]
+    lx = (f[3] * dx + f[6] * dy + f[9] * dz) / s
+    ly = (f[4] * dx + f[7] * dy + f[10] * dz) / s
+    lz = (f[5] * dx + f[8] * dy + f[11] * dz) / s
+    p = inst_prog[img_inst[i]]
+    v, gx, gy, gz = K.eval_point(ops, lk, lr, ranges[p, 0], ranges[p, 1], lx, ly, lz, st)
+    return s * v
+
+
+@njit(cache=True, parallel=True)
+def _scene_brute(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, points, out):
+    n = points.shape[0]
+    nimg = img_inst.shape[0]
+    nchunk = (n + K.CHUNK - 1) // K.CHUNK
+    for c in prange(nchunk):
+        st = np.empty((K.MAX_STACK, 4))
+        for q in range(c * K.CHUNK, min(n, (c + 1) * K.CHUNK)):
+            best = np.inf
+            for i in range(nimg):
+                v = _image_phi(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, i,
+                               points[q, 0], points[q, 1], points[q, 2], st)
+                if v < best:
+                    best = v
+            out[q] = best
+
+
+@njit(cache=True)
+def _box_dist(bb, node, x, y, z):
+    dx = max(bb[node, 0] - x, 0.0, x - bb[node, 3])
+    dy = max(bb[node, 1] - y, 0.0, y - bb[node, 4])
+    dz = max(bb[node, 2] - z, 0.0, z - bb[node, 5])
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, parallel=True)
+def _scene_pruned(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, always, order, bvh_box,
+                  bvh_child, ball, tol, points, out):
+    """BVH traversal; bvh_child[node] = (left, right) or (-1 - first, count) for a leaf."""
+    n = points.shape[0]
+    nchunk = (n + K.CHUNK - 1) // K.CHUNK
+    nnode = bvh_child.shape[0]
+    for c in prange(nchunk):
+        st = np.empty((K.MAX_STACK, 4))
+        todo = np.empty(max(nnode, 1), dtype=np.int64)
+        for q in range(c * K.CHUNK, min(n, (c + 1) * K.CHUNK)):
+            x = points[q, 0]
+            y = points[q, 1]
+            z = points[q, 2]
+            best = np.inf
+            best_i = -1
+            for a in range(always.shape[0]):
+                i = always[a]
+                v = _image_phi(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, i, x, y, z,
+                               st)
+                if v < best or (v == best and i < best_i):
+                    best = v
+                    best_i = i
+            top = 0
+            if nnode > 0:
+                todo[0] = 0
+                top = 1
+            while top > 0:
+                top -= 1
+                node = todo[top]
+                if _box_dist(bvh_box, node, x, y, z) - tol > best:
+                    continue
+                a0 = bvh_child[node, 0]
+                if a0 < 0:
+                    first = -1 - a0
+                    for k in range(first, first + bvh_child[node, 1]):
+                        i = order[k]
+                        dx = x - ball[i, 0]
+                        dy = y - ball[i, 1]
+                        dz = z - ball[i, 2]
+                        if math.sqrt(dx * dx + dy * dy + dz * dz) - ball[i, 3] - tol > best:
+                            continue
+                        v = _image_phi(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, i,
+                                       x, y, z, st)
+                        if v < best or (v == best and i < best_i):
+                            best = v
+                            best_i = i
+                else:
+                    a1 = bvh_child[node, 1]
+                    # visit the nearer child first so that ``best`` falls early
+                    if _box_dist(bvh_box, a0, x, y, z) <= _box_dist(bvh_box, a1, x, y, z):
+                        todo[top] = a1
+                        todo[top + 1] = a0
+                    else:
+                        todo[top] = a0
+                        todo[top + 1] = a1
+                    top += 2
+            out[q] = best
+
+
+def _build_bvh(centres, radii, ids):
+    """Median-split BVH over balls. Returns (order, boxes (m, 6), child (m, 2))."""
+    boxes, child = [], []
+    order = []
+
+    def make(idx):
+        node = len(boxes)
+        lo = (centres[idx] - radii[idx, None]).min(axis=0)
+        hi = (centres[idx] + radii[idx, None]).max(axis=0)
+        boxes.append(np.concatenate([lo, hi]))
+        child.append([0, 0])
+        return node
+
+    if len(ids) == 0:
+        return (np.zeros(0, np.int64), np.zeros((0, 6)), np.zeros((0, 2), np.int64))
+    work = [(make(ids), ids)]
+    while work:
+        node, idx = work.pop()
+        if len(idx) <= _LEAF_SIZE:
+            child[node] = [-1 - len(order), len(idx)]
+            order.extend(idx.tolist())
+            continue
+        ext = centres[idx].max(axis=0) - centres[idx].min(axis=0)
+        ax = int(np.argmax(ext))
+        srt = idx[np.argsort(centres[idx, ax], kind="stable")]
+        half = len(srt) // 2
+        left, right = srt[:half], srt[half:]
+        ln, rn = make(left), make(right)
+        child[node] = [ln, rn]
+        work.append((ln, left))
+        work.append((rn, right))
+    return (np.asarray(order, np.int64), np.asarray(boxes, np.float64),
+            np.asarray(child, np.int64))
+
+
+class Scene:
+    """Instances of one builder, flattened for the query kernels."""
+
+    def __init__(self, programs, inst_prog, frames, balls, certified, box, periodic):
+        ops, lk, lr, ranges = concatenate(programs)
+        self._progs = (ops, lk, lr, ranges)
+        self.box = box
+        self.periodic = np.asarray(periodic, dtype=bool)
+        shifts = [np.zeros(3)]
+        if box is not None:
+            lo, hi = box
+            length = hi - lo
+            grid = [(-1, 0, 1) if p else (0,) for p in self.periodic]
+            shifts = [np.array([i, j, k], float) * length
+                      for i in grid[0] for j in grid[1] for k in grid[2]]
+        img_inst, img_frame, img_ball, img_cert = [], [], [], []
+        for inst in range(len(frames)):
+            for sh in shifts:
+                f = frames[inst].copy()
+                f[0:3] += sh
+                img_inst.append(inst)
+                img_frame.append(f)
+                img_ball.append(np.concatenate([balls[inst][:3] + sh, balls[inst][3:]]))
+                img_cert.append(certified[inst])
+        self.img_inst = np.asarray(img_inst, np.int64)
+        self.img_frame = np.asarray(img_frame, np.float64).reshape(-1, 13)
+        self.ball = np.asarray(img_ball, np.float64).reshape(-1, 4)
+        cert = np.asarray(img_cert, bool)
+        self.inst_prog = np.asarray(inst_prog, np.int64)
+        self.always = np.flatnonzero(~cert).astype(np.int64)
+        ids = np.flatnonzero(cert)
+        self.order, self.bvh_box, self.bvh_child = _build_bvh(self.ball[:, :3], self.ball[:, 3],
+                                                              ids)
+        rmax = float(self.ball[:, 3][np.isfinite(self.ball[:, 3])].max(initial=1.0))
+        self.tol = 1e-9 * (1.0 + rmax)
+
+    @classmethod
+    def from_builder(cls, builder, box=None, periodic=(False, False, False)):
+        n = builder.num_instances()
+        if n == 0:
+            raise ValueError("the scene has no instances: call add_instance first")
+        per = tuple(bool(p) for p in periodic)
+        if len(per) != 3:
+            raise ValueError(f"periodic must be 3 flags, got {periodic!r}")
+        if box is not None:
+            lo = np.asarray(box[0], float).reshape(3)
+            hi = np.asarray(box[1], float).reshape(3)
+            if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi > lo)):
+                raise ValueError(f"box must be (lo, hi) with finite hi > lo, got {box!r}")
+            box = (lo, hi)
+        elif any(per):
+            raise ValueError("periodic axes need box=(lo, hi)")
+        _, _, ii, ir = builder.encode()
+        roots = sorted(set(ii[:, 0].tolist()))
+        prog_of = {r: k for k, r in enumerate(roots)}
+        programs = [builder.program(r) for r in roots]
+        frames, balls, cert, inst_prog = [], [], [], []
+        for k in range(n):
+            root = int(ii[k, 0])
+            t, q, s = ir[k, 0:3], ir[k, 3:7], float(ir[k, 7])
+            R = quat_to_matrix(q)
+            frames.append(np.concatenate([t, R.reshape(-1), [s]]))
+            c0, r0, certified = builder.node_bound(root)
+            c, r = transform_ball(c0, r0, t, q, s)
+            if box is not None:
+                length = box[1] - box[0]
+                for a in range(3):
+                    if per[a] and not (box[0][a] <= t[a] < box[1][a]):
+                        raise ValueError(f"instance {k}: translation[{a}]={t[a]} must lie in "
+                                         f"the periodic box [{box[0][a]}, {box[1][a]})")
+                    if per[a] and not r <= length[a]:
+                        raise ValueError(f"instance {k}: bounding radius {r} exceeds the "
+                                         f"periodic box length {length[a]} on axis {a}")
+            balls.append(np.concatenate([c, [r]]))
+            cert.append(certified and np.isfinite(r))
+            inst_prog.append(prog_of[root])
+        return cls(programs, inst_prog, frames, balls, cert, box, per)
+
+    def _wrap(self, points):
+        pts = as_points(points)
+        if self.box is not None and self.periodic.any():
+            lo, hi = self.box
+            length = hi - lo
+            pts = pts.copy()
+            for a in np.flatnonzero(self.periodic):
+                pts[:, a] = lo[a] + np.mod(pts[:, a] - lo[a], length[a])
+        return np.ascontiguousarray(pts)
+
+    def evaluate(self, points, method="pruned"):
+        if method not in ("pruned", "brute"):
+            raise ValueError(f"method must be 'pruned' or 'brute', got {method!r}")
+        pts = self._wrap(points)
+        out = np.empty(len(pts))
+        ops, lk, lr, ranges = self._progs
+        if method == "brute":
+            _scene_brute(ops, lk, lr, ranges, self.img_inst, self.img_frame, self.inst_prog,
+                         pts, out)
+        else:
+            _scene_pruned(ops, lk, lr, ranges, self.img_inst, self.img_frame, self.inst_prog,
+                          self.always, self.order, self.bvh_box, self.bvh_child, self.ball,
+                          self.tol, pts, out)
+        return out

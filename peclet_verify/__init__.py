@@ -1,0 +1,1 @@
+"""peclet_verify: Hypothesis strategies, certification properties and the pytest plugin."""
