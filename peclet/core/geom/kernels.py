@@ -206,10 +206,11 @@ def leaf_eval(kind, L, j, x, y, z):
         if k0 == 0.0 or k1 == 0.0:
             return -min(rx, min(ry, rz)), 1.0, 0.0, 0.0
         v = k0 * (k0 - 1.0) / k1
-        # grad k0 = (x/r^2)/k0 = b/k0; grad k1 = (x/r^4)/k1 = (b/r)/k1
+        # grad k0 = (x/r^2)/k0 = b/k0; grad k1 = (x/r^4)/k1 = (b/r^2)/k1
         c0 = (2.0 * k0 - 1.0) / (k0 * k1)
         c1 = k0 * (k0 - 1.0) / (k1 * k1 * k1)
-        return (v, c0 * bx - c1 * bx / rx, c0 * by - c1 * by / ry, c0 * bz - c1 * bz / rz)
+        return (v, c0 * bx - c1 * bx / (rx * rx), c0 * by - c1 * by / (ry * ry),
+                c0 * bz - c1 * bz / (rz * rz))
 
     if kind == 9:  # superquadric: rx, ry, rz, e (bound)
         rx = L[j, 0]

@@ -57,11 +57,15 @@ def _scene_brute(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, points, ou
 
 
 @njit(cache=True)
-def _box_dist(bb, node, x, y, z):
+def _node_lower_bound(bb, node, x, y, z):
+    """A lower bound of |p - c| - r over the balls of a BVH node (negative inside a ball).
+
+    ``bb[node]`` is the box of the balls' centres (lo, hi) and their largest radius.
+    """
     dx = max(bb[node, 0] - x, 0.0, x - bb[node, 3])
     dy = max(bb[node, 1] - y, 0.0, y - bb[node, 4])
     dz = max(bb[node, 2] - z, 0.0, z - bb[node, 5])
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
+    return math.sqrt(dx * dx + dy * dy + dz * dz) - bb[node, 6]
 
 
 @njit(cache=True, parallel=True)
@@ -94,7 +98,7 @@ def _scene_pruned(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, always, o
             while top > 0:
                 top -= 1
                 node = todo[top]
-                if _box_dist(bvh_box, node, x, y, z) - tol > best:
+                if _node_lower_bound(bvh_box, node, x, y, z) - tol > best:
                     continue
                 a0 = bvh_child[node, 0]
                 if a0 < 0:
@@ -114,7 +118,7 @@ def _scene_pruned(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, always, o
                 else:
                     a1 = bvh_child[node, 1]
                     # visit the nearer child first so that ``best`` falls early
-                    if _box_dist(bvh_box, a0, x, y, z) <= _box_dist(bvh_box, a1, x, y, z):
+                    if _node_lower_bound(bvh_box, a0, x, y, z) <= _node_lower_bound(bvh_box, a1, x, y, z):
                         todo[top] = a1
                         todo[top + 1] = a0
                     else:
@@ -125,20 +129,22 @@ def _scene_pruned(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, always, o
 
 
 def _build_bvh(centres, radii, ids):
-    """Median-split BVH over balls. Returns (order, boxes (m, 6), child (m, 2))."""
+    """Median-split BVH over balls. Returns (order, boxes (m, 7), child (m, 2)).
+
+    A node's box row is (centre lo[3], centre hi[3], max radius).
+    """
     boxes, child = [], []
     order = []
 
     def make(idx):
         node = len(boxes)
-        lo = (centres[idx] - radii[idx, None]).min(axis=0)
-        hi = (centres[idx] + radii[idx, None]).max(axis=0)
-        boxes.append(np.concatenate([lo, hi]))
+        boxes.append(np.concatenate([centres[idx].min(axis=0), centres[idx].max(axis=0),
+                                     [radii[idx].max()]]))
         child.append([0, 0])
         return node
 
     if len(ids) == 0:
-        return (np.zeros(0, np.int64), np.zeros((0, 6)), np.zeros((0, 2), np.int64))
+        return (np.zeros(0, np.int64), np.zeros((0, 7)), np.zeros((0, 2), np.int64))
     work = [(make(ids), ids)]
     while work:
         node, idx = work.pop()
