@@ -9,8 +9,12 @@
 from .builder import SceneBuilder, as_points, decode, evaluate
 from .leaves import (DIFFERENCE, INTERSECTION, LEAF_NAMES, LEAVES_BY_KIND, LEAVES_BY_NAME,
                      UNION, LeafSpec, leaf_spec)
+from .quadrature import BodyProperties, body_properties, principal_frame
+from .shell import count_for_spacing, even_spacing, shell_probes
 from .transforms import matrix_to_quat, quat_multiply, quat_to_matrix
 
 __all__ = ["SceneBuilder", "decode", "evaluate", "as_points", "LEAF_NAMES", "LEAVES_BY_KIND",
            "LEAVES_BY_NAME", "LeafSpec", "leaf_spec", "UNION", "INTERSECTION", "DIFFERENCE",
-           "quat_to_matrix", "matrix_to_quat", "quat_multiply"]
+           "quat_to_matrix", "matrix_to_quat", "quat_multiply", "BodyProperties",
+           "body_properties", "principal_frame", "shell_probes", "count_for_spacing",
+           "even_spacing"]

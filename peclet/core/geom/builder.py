@@ -224,6 +224,19 @@ class SceneBuilder:
                        o, sp, d, out)
         return out
 
+    # ------------------------------------------------------------------ mass properties
+    def body_properties(self, root, lo, hi, **kw):
+        """Mass properties of ``root`` in the box [lo, hi]; see
+        :func:`peclet.core.geom.quadrature.body_properties`."""
+        from .quadrature import body_properties
+        return body_properties(self, root, lo, hi, **kw)
+
+    def principal_frame(self, root, lo, hi, **kw):
+        """(new_root, props): ``root`` reframed exactly to its principal frame; see
+        :func:`peclet.core.geom.quadrature.principal_frame`."""
+        from .quadrature import principal_frame
+        return principal_frame(self, root, lo, hi, **kw)
+
     # ------------------------------------------------------------------ scene
     def add_instance(self, root, translation=None, rotation=None, scale=None) -> int:
         """Place the tree at ``root`` in the scene with a transform; returns the instance index."""

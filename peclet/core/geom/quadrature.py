@@ -58,7 +58,10 @@ def _ev(ops, lk, lr, ob, oe, x, y, z, st):
 def _refine_root(ops, lk, lr, ob, oe, x, y, a, fa, b, fb, tolz, st, out, k):
     """Root of phi(x, y, .) in [a, b] (fa, fb of opposite inside-sign). Writes z and the
     unit normal into out[k, 0:4]. Safeguarded Newton with bisection fallback."""
-    z = 0.5 * (a + b)
+    # secant start: for a distance field it is already close to the root
+    z = a - fa * (b - a) / (fb - fa)
+    if not (a < z < b):
+        z = 0.5 * (a + b)
     g = 0.0
     gx = 0.0
     gy = 0.0
@@ -76,7 +79,8 @@ def _refine_root(ops, lk, lr, ob, oe, x, y, a, fa, b, fb, tolz, st, out, k):
         # Newton only while it stays well inside the bracket; else bisect
         if not (a < zn < b) or not (zn == zn):
             zn = 0.5 * (a + b)
-        if zn == z:
+        if abs(zn - z) <= 0.5 * tolz:
+            z = zn
             break
         z = zn
     zr = 0.5 * (a + b) if b - a <= tolz else z
@@ -90,19 +94,26 @@ def _refine_root(ops, lk, lr, ob, oe, x, y, a, fa, b, fb, tolz, st, out, k):
 
 
 @njit(cache=True)
-def _extremum(ops, lk, lr, ob, oe, x, y, a, b, s, tolz, st):
+def _extremum(ops, lk, lr, ob, oe, x, y, a, b, s, tolx, lip, st):
     """Locate the extremum of phi(x, y, .) in [a, b] where s*dphi/dz goes - -> +; returns
     (z, phi)."""
+    fa = abs(_ev(ops, lk, lr, ob, oe, x, y, a, st)[0])
+    fb = abs(_ev(ops, lk, lr, ob, oe, x, y, b, st)[0])
     for _ in range(80):
+        # 1-Lipschitz: no zero in [a, b] once |fa| + |fb| > b - a
+        if lip and fa + fb > b - a:
+            break
         m = 0.5 * (a + b)
         f, gx, gy, gz = _ev(ops, lk, lr, ob, oe, x, y, m, st)
         if (f < 0.0) != (s < 0.0):
             return m, f
         if s * gz < 0.0:
             a = m
+            fa = abs(f)
         else:
             b = m
-        if b - a <= tolz:
+            fb = abs(f)
+        if b - a <= tolx:
             break
     m = 0.5 * (a + b)
     f, gx, gy, gz = _ev(ops, lk, lr, ob, oe, x, y, m, st)
@@ -139,8 +150,10 @@ def _line(ops, lk, lr, ob, oe, x, y, zlo, zhi, hmin, lip, tolz, st, roots):
         else:
             s = 1.0 if f0 >= 0.0 else -1.0
             # |phi| falls then rises inside the step and could reach zero: look at the extremum
-            if s * g0 < 0.0 and s * g1 > 0.0 and min(abs(f0), abs(f1)) < (z1 - z0):
-                zm, fm = _extremum(ops, lk, lr, ob, oe, x, y, z0, z1, s, tolz, st)
+            reach = (abs(f0) + abs(f1) if lip else min(abs(f0), abs(f1))) < (z1 - z0)
+            if s * g0 < 0.0 and s * g1 > 0.0 and reach:
+                # a sliver thinner than ~1e6 tolz is below any moment we report
+                zm, fm = _extremum(ops, lk, lr, ob, oe, x, y, z0, z1, s, 1e6 * tolz, lip, st)
                 if (fm < 0.0) != (f0 < 0.0):
                     if nr + 2 > MAX_ROOTS:
                         return -1
@@ -264,7 +277,7 @@ def _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount, dk
         kink_ev = False
         if not count_ev and cnt[ia] > 0:
             jump = _normal_jump(nrm, ia, ib, cnt[ia])
-            kink_ev = jump > KINK_TAU and jump > KINK_KEEP * pj
+            kink_ev = jump > KINK_TAU and (pj == np.inf or jump > KINK_KEEP * pj)
         if not count_ev and not kink_ev:
             continue
         if (count_ev and b - a <= dcount) or (not count_ev and b - a <= dkink):
@@ -293,7 +306,7 @@ def _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount, dk
             keep.append(out[i])
         elif i == len(out) - 1:
             keep[-1] = out[i]
-    return np.array(keep), ok
+    return np.array(keep), ok, ns
 
 
 # ---------------------------------------------------------------------- adaptive pieces
@@ -326,8 +339,8 @@ def _slice(ops, lk, lr, ob, oe, x, lo, hi, cen, n, hmin, lip, tolz, dcount, dkin
     """Integrate the slice at x over (y, z); res[0:6] moments (z relative to cen[2] handled by
     the caller through shifted z limits), res[6] error estimate, res[7] breakpoint count.
     Returns False on failure (too many roots)."""
-    brk, ok = _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount, dkink,
-                            st, roots)
+    brk, ok, _ = _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount,
+                               dkink, st, roots)
     q = gx.shape[0]
     for c in range(8):
         res[c] = 0.0
@@ -423,8 +436,8 @@ def _slice(ops, lk, lr, ob, oe, x, lo, hi, cen, n, hmin, lip, tolz, dcount, dkin
 
 @njit(cache=True)
 def _slice_sig(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount, dkink, st, roots):
-    brk, ok = _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount, dkink,
-                            st, roots)
+    brk, ok, _ = _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount,
+                               dkink, st, roots)
     return len(brk) if ok else -1
 
 

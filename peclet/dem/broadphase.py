@@ -1,0 +1,185 @@
+"""Broad phase: candidate body pairs from a cell list over bounding spheres.
+
+A pair (i, j), i < j, is a candidate when the minimum-image distance of the two centres is
+below ``r_i + r_j + margin``. On periodic axes the displacement is wrapped into
+``[-L/2, L/2)`` (one image per pair; the caller guarantees ``L > 2 * cutoff`` so that no pair can
+interact through two images). Non-periodic axes need no domain: the grid spans the particles.
+
+The kernel is serial on purpose: it costs a few microseconds per body, less than the barrier
+of a parallel launch on a loaded machine. Count pass, then fill pass into exactly-sized arrays;
+within a body's row the partners are sorted by index, so the list is ordered by (i, j).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def build_cells(pos, lo, cell, dims):
+    """Counting sort of bodies into cells. Returns (cell_start (ncell + 1,), items (N,),
+    coords (N, 3)). Coordinates outside the grid are clamped into it (monotone, so bodies in
+    non-adjacent cells are never closer than one cell width)."""
+    n = pos.shape[0]
+    coords = np.empty((n, 3), np.int64)
+    ncell = dims[0] * dims[1] * dims[2]
+    counts = np.zeros(ncell + 1, np.int64)
+    cid = np.empty(n, np.int64)
+    for i in range(n):
+        for a in range(3):
+            c = int(math.floor((pos[i, a] - lo[a]) / cell[a]))
+            if c < 0:
+                c = 0
+            if c >= dims[a]:
+                c = dims[a] - 1
+            coords[i, a] = c
+        k = (coords[i, 2] * dims[1] + coords[i, 1]) * dims[0] + coords[i, 0]
+        cid[i] = k
+        counts[k + 1] += 1
+    for k in range(ncell):
+        counts[k + 1] += counts[k]
+    fill = counts[:-1].copy()
+    items = np.empty(n, np.int64)
+    for i in range(n):
+        items[fill[cid[i]]] = i
+        fill[cid[i]] += 1
+    return counts, items, coords
+
+
+@njit(cache=True)
+def _axis_cells(c, dim, periodic, out):
+    """Absolute neighbour cell indices along one axis, without duplicates."""
+    if periodic and dim < 3:
+        for k in range(dim):
+            out[k] = k
+        return dim
+    m = 0
+    for d in range(-1, 2):
+        k = c + d
+        if periodic:
+            k = k % dim
+        elif k < 0 or k >= dim:
+            continue
+        out[m] = k
+        m += 1
+    return m
+
+
+@njit(cache=True)
+def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
+               out_j, out_shift, write, base):
+    """Visit body i's partners j > i; count them, and if ``write`` store them from ``base``."""
+    ax = np.empty(3, np.int64)
+    ay = np.empty(3, np.int64)
+    az = np.empty(3, np.int64)
+    nx = _axis_cells(coords[i, 0], dims[0], periodic[0], ax)
+    ny = _axis_cells(coords[i, 1], dims[1], periodic[1], ay)
+    nz = _axis_cells(coords[i, 2], dims[2], periodic[2], az)
+    cnt = 0
+    d = np.empty(3)
+    for a in range(nx):
+        for b in range(ny):
+            for c in range(nz):
+                k = (az[c] * dims[1] + ay[b]) * dims[0] + ax[a]
+                for s in range(cell_start[k], cell_start[k + 1]):
+                    j = items[s]
+                    if j <= i:
+                        continue
+                    r2 = 0.0
+                    for e in range(3):
+                        v = pos[j, e] - pos[i, e]
+                        if periodic[e]:
+                            v -= box[e] * math.floor(v / box[e] + 0.5)
+                        d[e] = v
+                        r2 += v * v
+                    cut = radius[i] + radius[j] + margin
+                    if r2 < cut * cut:
+                        if write:
+                            out_j[base + cnt] = j
+                            for e in range(3):
+                                out_shift[base + cnt, e] = d[e] - (pos[j, e] - pos[i, e])
+                        cnt += 1
+    return cnt
+
+
+@njit(cache=True)
+def find_pairs(pos, radius, margin, lo, cell, dims, box, periodic):
+    """Candidate pairs. Returns (a (P,), b (P,), shift (P, 3)) with a < b, sorted by (a, b);
+    ``pos[b] + shift`` is the image of b nearest to a."""
+    n = pos.shape[0]
+    cell_start, items, coords = build_cells(pos, lo, cell, dims)
+    counts = np.zeros(n, np.int64)
+    dummy_j = np.empty(0, np.int64)
+    dummy_s = np.empty((0, 3))
+    for i in range(n):
+        counts[i] = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
+                               coords, dummy_j, dummy_s, False, 0)
+    offs = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        offs[i + 1] = offs[i] + counts[i]
+    total = offs[n]
+    pb = np.empty(total, np.int64)
+    shift = np.empty((total, 3))
+    for i in range(n):
+        _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
+                   pb, shift, True, offs[i])
+        # insertion sort of row i by partner index: a fixed order independent of cell layout
+        for u in range(offs[i] + 1, offs[i + 1]):
+            j = pb[u]
+            s0 = shift[u, 0]
+            s1 = shift[u, 1]
+            s2 = shift[u, 2]
+            w = u - 1
+            while w >= offs[i] and pb[w] > j:
+                pb[w + 1] = pb[w]
+                shift[w + 1, 0] = shift[w, 0]
+                shift[w + 1, 1] = shift[w, 1]
+                shift[w + 1, 2] = shift[w, 2]
+                w -= 1
+            pb[w + 1] = j
+            shift[w + 1, 0] = s0
+            shift[w + 1, 1] = s1
+            shift[w + 1, 2] = s2
+    pa = np.empty(total, np.int64)
+    for i in range(n):
+        for u in range(offs[i], offs[i + 1]):
+            pa[u] = i
+    return pa, pb, shift
+
+
+def grid_for(pos, cutoff, domain_lo, domain_hi, periodic, max_cells):
+    """Cell grid (lo (3,), cell (3,), dims (3,) int64, box (3,)) for the bodies at ``pos``.
+
+    Periodic axes span the domain with cells of at least ``cutoff``; other axes span the
+    bodies. The cell size grows when the grid would exceed ``max_cells`` cells.
+    """
+    lo = np.empty(3)
+    ext = np.empty(3)
+    box = np.ones(3)
+    for a in range(3):
+        if periodic[a]:
+            lo[a] = domain_lo[a]
+            ext[a] = domain_hi[a] - domain_lo[a]
+            box[a] = ext[a]
+        elif len(pos):
+            lo[a] = pos[:, a].min()
+            ext[a] = pos[:, a].max() - lo[a]
+        else:
+            lo[a] = 0.0
+            ext[a] = 0.0
+    size = max(cutoff, 1e-300)
+    while True:
+        dims = np.empty(3, np.int64)
+        cell = np.empty(3)
+        for a in range(3):
+            if periodic[a]:
+                dims[a] = max(1, int(ext[a] // size))
+                cell[a] = ext[a] / dims[a]
+            else:
+                dims[a] = int(ext[a] // size) + 1
+                cell[a] = size
+        if int(np.prod(dims)) <= max_cells:
+            return lo, cell, dims, box
+        size *= 1.5

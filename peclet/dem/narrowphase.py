@@ -1,0 +1,365 @@
+"""Narrow phase: contact manifolds for body-body and body-wall tasks.
+
+Every task is one pair: (a, b) with b >= 0 a body (image shift given), or b = -1 - w a wall.
+
+- sphere / sphere: the exact analytic contact along the centre line;
+- sphere / tree: the sphere's centre against the tree's exact field, ``phi - radius``;
+- tree / tree: each body's shell probes, mapped into the other's home frame, against the
+  other's exact tree -- BOTH ways, so a thin rim pressed between one body's probes is still
+  caught by the other's probes;
+- body / wall: the body's probes (a sphere: its centre) against the wall's tree.
+
+Normals are the analytic gradients of the tree (normalised), rotated to the world frame; the
+stored normal always points from b to a (it pushes a away from b). ``gap`` is the signed
+separation (< 0 is a penetration of depth -gap); the contact point is midway between the two
+surfaces. Hits within ``margin`` are kept (speculative contacts).
+
+Probes are grouped into clusters with a bounding sphere. When the tree's field is 1-Lipschitz,
+a whole cluster is skipped if phi at its centre exceeds its radius plus the margin; this
+removes most evaluations and never changes the result (a skipped probe cannot be a hit).
+
+Manifold reduction (so that a pair's impulse does not depend on how many probes happen to be
+inside): hits are grouped by normal direction (at most ``MAX_CLUSTERS`` groups, each seeded by
+its deepest remaining hit), and each group keeps at most four points: the deepest, the one
+farthest from it in the contact plane, and the two extremes on either side of that line.
+A task therefore writes at most ``MAX_PER_TASK`` contacts, into its own slots.
+
+Determinism: tasks run in parallel over fixed-size chunks, every task writes only its own
+slots; all choices break ties by the lowest index.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from peclet.core.geom.kernels import MAX_STACK, eval_point
+from peclet.dem.rigid import quat_to_matrix
+
+MAX_CLUSTERS = 4
+POINTS_PER_CLUSTER = 4
+MAX_PER_TASK = MAX_CLUSTERS * POINTS_PER_CLUSTER
+#: Two hits belong to the same normal group when their normals make an angle below ~37 deg.
+CLUSTER_COS = 0.8
+#: Feature ids of the second direction (b's probes in a's tree) are offset by this.
+FEATURE_DIR = 1 << 24
+TASK_CHUNK = 8
+
+# hit row layout
+_HX, _HN, _HG, _HF = 0, 3, 6, 7
+HIT_COLS = 8
+
+
+@njit(cache=True, inline="always")
+def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin,
+                   ops, lk, lr, st, hits, nh):
+    """A point (a probe with r = 0, or a sphere's centre with its radius r) against a tree
+    placed at xt with rotation Rt; ``sgn`` = -1 for an inverted wall. Appends at most one hit."""
+    dx = px - xt[0]
+    dy = py - xt[1]
+    dz = pz - xt[2]
+    qx = Rt[0, 0] * dx + Rt[1, 0] * dy + Rt[2, 0] * dz
+    qy = Rt[0, 1] * dx + Rt[1, 1] * dy + Rt[2, 1] * dz
+    qz = Rt[0, 2] * dx + Rt[1, 2] * dy + Rt[2, 2] * dz
+    lim = trad + r + margin
+    if qx * qx + qy * qy + qz * qz > lim * lim:
+        return nh
+    phi, gx, gy, gz = eval_point(ops, lk, lr, o0, o1, qx, qy, qz, st)
+    phi = sgn * phi - r
+    if not (phi < margin):
+        return nh
+    nx = sgn * (Rt[0, 0] * gx + Rt[0, 1] * gy + Rt[0, 2] * gz)
+    ny = sgn * (Rt[1, 0] * gx + Rt[1, 1] * gy + Rt[1, 2] * gz)
+    nz = sgn * (Rt[2, 0] * gx + Rt[2, 1] * gy + Rt[2, 2] * gz)
+    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if not (nn > 0.0):
+        return nh
+    nx /= nn
+    ny /= nn
+    nz /= nn
+    # midway between the point's surface (at distance r) and the tree's surface
+    h = r + 0.5 * phi
+    hits[nh, 0] = px - h * nx
+    hits[nh, 1] = py - h * ny
+    hits[nh, 2] = pz - h * nz
+    hits[nh, 3] = nsign * nx
+    hits[nh, 4] = nsign * ny
+    hits[nh, 5] = nsign * nz
+    hits[nh, 6] = phi
+    hits[nh, 7] = feat
+    return nh + 1
+
+
+@njit(cache=True, inline="always")
+def _probes_vs_tree(xa, Ra, s, shape_p0, shape_cl, cl_centre, cl_rad, cl_range, probes,
+                    xt, Rt, o0, o1, sgn, lip, trad, nsign, fbase, margin,
+                    ops, lk, lr, st, hits, nh):
+    """Body a's shell probes (shape s, at xa with rotation Ra) against a tree. Clusters whose
+    bounding sphere is provably farther than the margin are skipped (1-Lipschitz trees only)."""
+    for c in range(shape_cl[s, 0], shape_cl[s, 1]):
+        cx = xa[0] + Ra[0, 0] * cl_centre[c, 0] + Ra[0, 1] * cl_centre[c, 1] + Ra[0, 2] * cl_centre[c, 2]
+        cy = xa[1] + Ra[1, 0] * cl_centre[c, 0] + Ra[1, 1] * cl_centre[c, 1] + Ra[1, 2] * cl_centre[c, 2]
+        cz = xa[2] + Ra[2, 0] * cl_centre[c, 0] + Ra[2, 1] * cl_centre[c, 1] + Ra[2, 2] * cl_centre[c, 2]
+        dx = cx - xt[0]
+        dy = cy - xt[1]
+        dz = cz - xt[2]
+        lim = trad + cl_rad[c] + margin
+        if dx * dx + dy * dy + dz * dz > lim * lim:
+            continue
+        if lip:
+            qx = Rt[0, 0] * dx + Rt[1, 0] * dy + Rt[2, 0] * dz
+            qy = Rt[0, 1] * dx + Rt[1, 1] * dy + Rt[2, 1] * dz
+            qz = Rt[0, 2] * dx + Rt[1, 2] * dy + Rt[2, 2] * dz
+            phi = sgn * eval_point(ops, lk, lr, o0, o1, qx, qy, qz, st)[0]
+            if phi > cl_rad[c] + margin:
+                continue
+        for p in range(cl_range[c, 0], cl_range[c, 1]):
+            px = xa[0] + Ra[0, 0] * probes[p, 0] + Ra[0, 1] * probes[p, 1] + Ra[0, 2] * probes[p, 2]
+            py = xa[1] + Ra[1, 0] * probes[p, 0] + Ra[1, 1] * probes[p, 1] + Ra[1, 2] * probes[p, 2]
+            pz = xa[2] + Ra[2, 0] * probes[p, 0] + Ra[2, 1] * probes[p, 1] + Ra[2, 2] * probes[p, 2]
+            nh = _point_vs_tree(px, py, pz, 0.0, xt, Rt, o0, o1, sgn, trad, nsign,
+                                fbase + p - shape_p0[s], margin, ops, lk, lr, st, hits, nh)
+    return nh
+
+
+@njit(cache=True)
+def _reduce(hits, nh, lab, reps, tol2, base, out_point, out_normal, out_gap, out_feat):
+    """Reduce a task's hits to at most MAX_PER_TASK contacts written from slot ``base``."""
+    for i in range(nh):
+        lab[i] = -1
+    ncl = 0
+    while ncl < MAX_CLUSTERS:
+        best = -1
+        for i in range(nh):
+            if lab[i] < 0 and (best < 0 or hits[i, _HG] < hits[best, _HG]):
+                best = i
+        if best < 0:
+            break
+        for i in range(nh):
+            if lab[i] < 0:
+                d = (hits[i, 3] * hits[best, 3] + hits[i, 4] * hits[best, 4]
+                     + hits[i, 5] * hits[best, 5])
+                if d >= CLUSTER_COS:
+                    lab[i] = ncl
+        lab[best] = ncl
+        reps[ncl] = best
+        ncl += 1
+    for i in range(nh):
+        if lab[i] < 0:
+            bk = 0
+            bd = -2.0
+            for k in range(ncl):
+                r = reps[k]
+                d = hits[i, 3] * hits[r, 3] + hits[i, 4] * hits[r, 4] + hits[i, 5] * hits[r, 5]
+                if d > bd:
+                    bd = d
+                    bk = k
+            lab[i] = bk
+    nout = 0
+    for k in range(ncl):
+        i0 = reps[k]
+        nx = hits[i0, 3]
+        ny = hits[i0, 4]
+        nz = hits[i0, 5]
+        # farthest from the deepest point, in the contact plane
+        i1 = -1
+        b1 = tol2
+        for i in range(nh):
+            if lab[i] == k:
+                ex = hits[i, 0] - hits[i0, 0]
+                ey = hits[i, 1] - hits[i0, 1]
+                ez = hits[i, 2] - hits[i0, 2]
+                en = ex * nx + ey * ny + ez * nz
+                d2 = ex * ex + ey * ey + ez * ez - en * en
+                if d2 > b1:
+                    b1 = d2
+                    i1 = i
+        i2 = -1
+        i3 = -1
+        if i1 >= 0:
+            ux = hits[i1, 0] - hits[i0, 0]
+            uy = hits[i1, 1] - hits[i0, 1]
+            uz = hits[i1, 2] - hits[i0, 2]
+            # signed (doubled) triangle area n . (u x e), largest either side of the line
+            thr = tol2 ** 0.5 * b1 ** 0.5
+            b2 = thr
+            b3 = -thr
+            for i in range(nh):
+                if lab[i] == k:
+                    ex = hits[i, 0] - hits[i0, 0]
+                    ey = hits[i, 1] - hits[i0, 1]
+                    ez = hits[i, 2] - hits[i0, 2]
+                    a = (nx * (uy * ez - uz * ey) + ny * (uz * ex - ux * ez)
+                         + nz * (ux * ey - uy * ex))
+                    if a > b2:
+                        b2 = a
+                        i2 = i
+                    if a < b3:
+                        b3 = a
+                        i3 = i
+        for i in (i0, i1, i2, i3):
+            if i >= 0:
+                o = base + nout
+                for e in range(3):
+                    out_point[o, e] = hits[i, e]
+                    out_normal[o, e] = hits[i, 3 + e]
+                out_gap[o] = hits[i, _HG]
+                out_feat[o] = np.int64(hits[i, _HF])
+                nout += 1
+    return nout
+
+
+@njit(cache=True)
+def _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
+           shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
+           cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
+           max_hits, tol2, out_count, out_point, out_normal, out_gap, out_feat):
+    """Tasks [ch * size, (ch + 1) * size): gather each task's hits, reduce them into its
+    own slots."""
+    st = np.empty((MAX_STACK, 4))
+    hits = np.empty((max_hits, HIT_COLS))
+    lab = np.empty(max_hits, np.int64)
+    reps = np.empty(MAX_CLUSTERS, np.int64)
+    xb = np.empty(3)
+    ident = np.eye(3)
+    origin = np.zeros(3)
+    for t in range(ch * size, min(task_a.shape[0], (ch + 1) * size)):
+        a = task_a[t]
+        b = task_b[t]
+        sa = shape_of[a]
+        xa = pos[a]
+        Ra = rot[a]
+        nh = 0
+        if b >= 0:
+            sb = shape_of[b]
+            for e in range(3):
+                xb[e] = pos[b, e] + task_shift[t, e]
+            Rb = rot[b]
+            if shape_kind[sa] == 0 and shape_kind[sb] == 0:
+                dx = xa[0] - xb[0]
+                dy = xa[1] - xb[1]
+                dz = xa[2] - xb[2]
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                gap = dist - shape_rad[sa] - shape_rad[sb]
+                if gap < margin:
+                    if dist > 0.0:
+                        nx = dx / dist
+                        ny = dy / dist
+                        nz = dz / dist
+                    else:
+                        nx, ny, nz = 0.0, 1.0, 0.0
+                    h = shape_rad[sa] + 0.5 * gap
+                    hits[0, 0] = xa[0] - h * nx
+                    hits[0, 1] = xa[1] - h * ny
+                    hits[0, 2] = xa[2] - h * nz
+                    hits[0, 3] = nx
+                    hits[0, 4] = ny
+                    hits[0, 5] = nz
+                    hits[0, 6] = gap
+                    hits[0, 7] = 0.0
+                    nh = 1
+            elif shape_kind[sa] == 0:
+                nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb,
+                                    shape_op[sb, 0], shape_op[sb, 1], 1.0, shape_rad[sb],
+                                    1.0, 0, margin, ops, lk, lr, st, hits, nh)
+            elif shape_kind[sb] == 0:
+                nh = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra,
+                                    shape_op[sa, 0], shape_op[sa, 1], 1.0, shape_rad[sa],
+                                    -1.0, FEATURE_DIR, margin, ops, lk, lr, st, hits, nh)
+            else:
+                nh = _probes_vs_tree(xa, Ra, sa, shape_p0, shape_cl, cl_centre, cl_rad,
+                                     cl_range, probes, xb, Rb, shape_op[sb, 0],
+                                     shape_op[sb, 1], 1.0, shape_lip[sb], shape_rad[sb],
+                                     1.0, 0, margin, ops, lk, lr, st, hits, nh)
+                nh = _probes_vs_tree(xb, Rb, sb, shape_p0, shape_cl, cl_centre, cl_rad,
+                                     cl_range, probes, xa, Ra, shape_op[sa, 0],
+                                     shape_op[sa, 1], 1.0, shape_lip[sa], shape_rad[sa],
+                                     -1.0, FEATURE_DIR, margin, ops, lk, lr, st, hits, nh)
+        else:
+            w = -1 - b
+            sg = wall_sign[w]
+            o0 = wall_op[w, 0]
+            o1 = wall_op[w, 1]
+            skip = False
+            if wall_lip[w]:
+                # whole-body cull: phi is 1-Lipschitz and the body lies within its radius
+                phc = sg * eval_point(ops, lk, lr, o0, o1, xa[0], xa[1], xa[2], st)[0]
+                skip = phc > shape_rad[sa] + margin
+            if not skip:
+                if shape_kind[sa] == 0:
+                    nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], origin, ident,
+                                        o0, o1, sg, np.inf, 1.0, 0, margin, ops, lk, lr,
+                                        st, hits, nh)
+                else:
+                    nh = _probes_vs_tree(xa, Ra, sa, shape_p0, shape_cl, cl_centre, cl_rad,
+                                         cl_range, probes, origin, ident, o0, o1, sg,
+                                         wall_lip[w], np.inf, 1.0, 0, margin, ops, lk, lr,
+                                         st, hits, nh)
+        out_count[t] = _reduce(hits, nh, lab, reps, tol2, t * MAX_PER_TASK,
+                               out_point, out_normal, out_gap, out_feat)
+
+
+@njit(cache=True, parallel=True)
+def narrow_phase(task_a, task_b, task_shift, pos, rot, shape_of,
+                 shape_kind, shape_rad, shape_op, shape_lip, shape_p0, shape_cl,
+                 cl_centre, cl_rad, cl_range, probes,
+                 wall_op, wall_sign, wall_lip,
+                 ops, lk, lr, margin, max_hits, tol2, chunks,
+                 out_count, out_point, out_normal, out_gap, out_feat):
+    """Contacts of every task into its own ``MAX_PER_TASK`` slots; ``out_count[t]`` = used.
+
+    ``chunks`` is the number of task chunks: 1 runs serially in the calling thread (small
+    problems, where a parallel launch costs more than it saves), otherwise fixed-size chunks
+    of TASK_CHUNK tasks run in parallel. Either way every task writes only its own slots, so
+    the result is identical."""
+    ntask = task_a.shape[0]
+    size = TASK_CHUNK if chunks > 1 else max(ntask, 1)
+    nchunk = (ntask + size - 1) // size
+    if chunks > 1:
+        for ch in prange(nchunk):
+            _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
+                   shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
+                   cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
+                   max_hits, tol2, out_count, out_point, out_normal, out_gap, out_feat)
+    else:
+        for ch in range(nchunk):
+            _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
+                   shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
+                   cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
+                   max_hits, tol2, out_count, out_point, out_normal, out_gap, out_feat)
+
+
+@njit(cache=True)
+def rotation_matrices(quats):
+    """R (N, 3, 3) from unit quaternions (N, 4) (x, y, z, w), body -> world."""
+    n = quats.shape[0]
+    out = np.empty((n, 3, 3))
+    for i in range(n):
+        out[i] = quat_to_matrix(quats[i])
+    return out
+
+
+def cluster_probes(points, cell):
+    """Group probe points (M, 3) by a voxel grid of size ``cell``.
+
+    Returns (order (M,), cluster_range (C, 2), centre (C, 3), radius (C,)): ``points[order]``
+    lists the clusters' members contiguously; a cluster's sphere contains all its members.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if len(pts) == 0:
+        return (np.zeros(0, np.int64), np.zeros((0, 2), np.int64), np.zeros((0, 3)),
+                np.zeros(0))
+    key = np.floor((pts - pts.min(axis=0)) / cell).astype(np.int64)
+    order = np.lexsort((np.arange(len(pts)), key[:, 0], key[:, 1], key[:, 2]))
+    ks = key[order]
+    brk = np.flatnonzero(np.any(np.diff(ks, axis=0) != 0, axis=1)) + 1
+    starts = np.concatenate([[0], brk])
+    ends = np.concatenate([brk, [len(pts)]])
+    centre = np.empty((len(starts), 3))
+    radius = np.empty(len(starts))
+    for c, (s, e) in enumerate(zip(starts, ends)):
+        m = pts[order[s:e]]
+        centre[c] = m.mean(axis=0)
+        radius[c] = np.sqrt(((m - centre[c]) ** 2).sum(axis=1)).max() * (1.0 + 1e-12) + 1e-15
+    return order.astype(np.int64), np.stack([starts, ends], axis=1).astype(np.int64), centre, radius

@@ -1,0 +1,340 @@
+"""Pack analysis on the exact trees (page Steps 2, 5 and 6).
+
+All measurements are taken on a :class:`~peclet.packing.freeze.Pack` (world frame: y up, floor
+at y = 0, periodic in x and z with sides ``pack.box``), so they are reproducible from the frozen
+file alone. Two Numba kernels do the work, both over the flat program arrays of the geometry core
+(one compiled kernel for every tree) and both writing only their own output slots, so results
+are bitwise the same at any thread count:
+
+- :func:`_cover_kernel`: for each sample point, how many element images contain it (phi < 0)
+  and whether it lies in some element's envelope (phi_env <= 0). Porosity, envelope packing
+  fraction and doubly-covered volume are fractions of these, with binomial standard errors.
+- :func:`_probe_min_kernel`: for each (probing body, target body) pair, the minimum of the
+  target's phi over the prober's shell probes. Contact (coordination) is min < 0 in EITHER
+  direction; the deepest probe gives the overlap depth.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from peclet.core.geom import kernels as K
+from peclet.core.geom.program import concatenate
+
+from .freeze import Pack
+
+__all__ = ["PackGeometry", "bulk_windows", "cover_fractions", "contacts", "orientation",
+           "floor_and_box", "certificate_check", "wall_sweep", "fraction_se"]
+
+
+@njit(cache=True, parallel=True)
+def _cover_kernel(ops, lk, lr, s0, s1, e0, e1, img_pos, img_rot, cutoff, pts, nin, inenv):
+    """nin[q] = #images with phi < 0 at pts[q]; inenv[q] = 1 if some envelope has phi <= 0.
+
+    img_rot[i] is the row-major home->world rotation of image i; e0 < 0 disables the envelope.
+    """
+    n = pts.shape[0]
+    m = img_pos.shape[0]
+    c2 = cutoff * cutoff
+    nchunk = (n + K.CHUNK - 1) // K.CHUNK
+    for c in prange(nchunk):
+        st = np.empty((K.MAX_STACK, 4))
+        for q in range(c * K.CHUNK, min(n, (c + 1) * K.CHUNK)):
+            cnt = 0
+            env = 0
+            for i in range(m):
+                dx = pts[q, 0] - img_pos[i, 0]
+                dy = pts[q, 1] - img_pos[i, 1]
+                dz = pts[q, 2] - img_pos[i, 2]
+                if dx * dx + dy * dy + dz * dz > c2:
+                    continue
+                R = img_rot[i]
+                lx = R[0] * dx + R[3] * dy + R[6] * dz
+                ly = R[1] * dx + R[4] * dy + R[7] * dz
+                lz = R[2] * dx + R[5] * dy + R[8] * dz
+                v = K.eval_point(ops, lk, lr, s0, s1, lx, ly, lz, st)[0]
+                if v < 0.0:
+                    cnt += 1
+                if e0 >= 0 and env == 0:
+                    if K.eval_point(ops, lk, lr, e0, e1, lx, ly, lz, st)[0] <= 0.0:
+                        env = 1
+            nin[q] = cnt
+            inenv[q] = env
+
+
+@njit(cache=True, parallel=True)
+def _probe_min_kernel(ops, lk, lr, s0, s1, shell, pa, ra, pb, rb, out):
+    """out[k] = min over probes s of phi_b(R_b^T (p_a + R_a s - p_b)) for pair k.
+
+    pa/pb (npair, 3) positions, ra/rb (npair, 9) row-major home->world rotations of the probing
+    body a and the target body b.
+    """
+    npair = pa.shape[0]
+    ns = shell.shape[0]
+    for k in prange(npair):
+        st = np.empty((K.MAX_STACK, 4))
+        A = ra[k]
+        B = rb[k]
+        best = np.inf
+        for s in range(ns):
+            sx = shell[s, 0]
+            sy = shell[s, 1]
+            sz = shell[s, 2]
+            wx = pa[k, 0] + A[0] * sx + A[1] * sy + A[2] * sz - pb[k, 0]
+            wy = pa[k, 1] + A[3] * sx + A[4] * sy + A[5] * sz - pb[k, 1]
+            wz = pa[k, 2] + A[6] * sx + A[7] * sy + A[8] * sz - pb[k, 2]
+            lx = B[0] * wx + B[3] * wy + B[6] * wz
+            ly = B[1] * wx + B[4] * wy + B[7] * wz
+            lz = B[2] * wx + B[5] * wy + B[8] * wz
+            v = K.eval_point(ops, lk, lr, s0, s1, lx, ly, lz, st)[0]
+            if v < best:
+                best = v
+        out[k] = best
+
+
+def fraction_se(p, n):
+    """Binomial standard error of a Monte Carlo fraction ``p`` from ``n`` samples."""
+    return math.sqrt(max(p * (1.0 - p), 0.0) / n)
+
+
+class PackGeometry:
+    """The pack's trees compiled once, and its periodic images (3 x 3 in x and z)."""
+
+    def __init__(self, pack: Pack):
+        self.pack = pack
+        b = pack.builder()
+        progs = [b.program(pack.home_root)]
+        if pack.envelope_root >= 0:
+            progs.append(b.program(pack.envelope_root))
+        self.ops, self.lk, self.lr, self.ranges = concatenate(progs)
+        self.has_env = pack.envelope_root >= 0
+        Lx, Lz = pack.box
+        self.R = pack.rotations()
+        shifts = np.array([[i * Lx, 0.0, j * Lz] for i in (-1, 0, 1) for j in (-1, 0, 1)])
+        self.img_pos = np.ascontiguousarray(
+            (pack.positions[None, :, :] + shifts[:, None, :]).reshape(-1, 3))
+        self.img_rot = np.ascontiguousarray(np.tile(self.R.reshape(pack.n, 9), (9, 1)))
+        self.owner = np.tile(np.arange(pack.n), 9)
+        cutoff = pack.bounding_radius
+        if self.has_env:
+            c, r, _ = b.node_bound(pack.envelope_root)
+            cutoff = max(cutoff, float(np.linalg.norm(c)) + r)
+        self.cutoff = float(cutoff)
+
+    def cover(self, pts):
+        """(n_inside (K,) int, in_envelope (K,) bool) at world points ``pts`` (K, 3)."""
+        pts = np.ascontiguousarray(pts, dtype=np.float64)
+        nin = np.empty(len(pts), np.int64)
+        env = np.empty(len(pts), np.int64)
+        s0, s1 = self.ranges[0]
+        e0, e1 = self.ranges[1] if self.has_env else (-1, -1)
+        _cover_kernel(self.ops, self.lk, self.lr, s0, s1, e0, e1, self.img_pos, self.img_rot,
+                      self.cutoff, pts, nin, env)
+        return nin, env.astype(bool)
+
+    def probe_min(self, a_idx, b_img):
+        """Min of body ``b_img`` (image index)'s phi over body ``a_idx``'s probes, per pair."""
+        a_idx = np.asarray(a_idx, np.int64)
+        b_img = np.asarray(b_img, np.int64)
+        out = np.empty(len(a_idx))
+        if len(a_idx) == 0:
+            return out
+        s0, s1 = self.ranges[0]
+        _probe_min_kernel(self.ops, self.lk, self.lr, s0, s1, self.pack.shell,
+                          np.ascontiguousarray(self.pack.positions[a_idx]),
+                          np.ascontiguousarray(self.R[a_idx].reshape(-1, 9)),
+                          np.ascontiguousarray(self.img_pos[b_img]),
+                          np.ascontiguousarray(self.img_rot[b_img]), out)
+        return out
+
+
+def bulk_windows(pack: Pack, floor_cut=(1.0, 0.8, 1.2), top_cut=(0.8, 0.6, 1.0)):
+    """The page's three bulk windows ``(floor_cut[k], y_top - top_cut[k])``, y_top the highest
+    centre. A bed too shallow for them (reduced runs) gets the cuts scaled down by the same
+    factor so every window keeps at least half the bed height; returns (windows, scale)."""
+    ytop = float(pack.positions[:, 1].max())
+    need = max(f + t for f, t in zip(floor_cut, top_cut))
+    scale = 1.0 if ytop - need >= 0.5 * ytop else 0.5 * ytop / need
+    return [(f * scale, ytop - t * scale) for f, t in zip(floor_cut, top_cut)], scale
+
+
+def cover_fractions(geo: PackGeometry, window, n_samples=400_000, seed=0):
+    """Porosity, envelope packing fraction and doubly-covered fraction over one bulk window.
+
+    Samples are uniform in [0, L_x) x [y0, y1) x [0, L_z) (numpy ``default_rng(seed)``).
+    Returns a dict: eps, f_env (NaN without an envelope), double, each with its binomial
+    standard error (``*_se``), and the window.
+    """
+    y0, y1 = (float(v) for v in window)
+    if not y1 > y0:
+        raise ValueError(f"window must be (y0, y1) with y1 > y0, got {window!r}")
+    if int(n_samples) < 1:
+        raise ValueError(f"n_samples must be >= 1, got {n_samples!r}")
+    n = int(n_samples)
+    Lx, Lz = geo.pack.box
+    g = np.random.default_rng(seed)
+    pts = np.column_stack([g.uniform(0, Lx, n), g.uniform(y0, y1, n), g.uniform(0, Lz, n)])
+    nin, env = geo.cover(pts)
+    eps = 1.0 - float((nin > 0).mean())
+    dbl = float((nin >= 2).mean())
+    f_env = float(env.mean()) if geo.has_env else math.nan
+    return dict(window=[y0, y1], eps=eps, eps_se=fraction_se(eps, n), f_env=f_env,
+                f_env_se=fraction_se(f_env, n) if geo.has_env else math.nan,
+                double=dbl, double_se=fraction_se(dbl, n), n_samples=n)
+
+
+def contacts(geo: PackGeometry):
+    """Coordination from the probe-inside test run BOTH ways, and the probe overlap depth.
+
+    A pair (i, image j), j's owner != i, with centres closer than two bounding radii touches if a
+    probe of either lies strictly inside the other's tree. Returns a dict: counts (N,) contacts
+    per body (the page's count over images), z_mean, rattlers (bodies with none), pairs (ordered
+    candidate pairs), max_depth (deepest probe of any body inside another, a length) and
+    depths (per touching pair).
+    """
+    from scipy.spatial import cKDTree
+
+    pack = geo.pack
+    tree = cKDTree(geo.img_pos)
+    ai, bj = [], []
+    for i in range(pack.n):
+        for j in sorted(tree.query_ball_point(pack.positions[i], 2 * pack.bounding_radius)):
+            if geo.owner[j] != i:
+                ai.append(i)
+                bj.append(j)
+    ai = np.asarray(ai, np.int64)
+    bj = np.asarray(bj, np.int64)
+    m_ab = geo.probe_min(ai, bj)
+    # the reverse direction: body j's probes (carried by its image) inside body i
+    m_ba = _probe_min_reverse(geo, ai, bj)
+    touch = (m_ab < 0.0) | (m_ba < 0.0)
+    cnt = np.bincount(ai[touch], minlength=pack.n) if len(ai) else np.zeros(pack.n, int)
+    depth = np.maximum(-np.minimum(m_ab, m_ba), 0.0)
+    return dict(counts=cnt, z_mean=float(cnt.mean()), rattlers=int((cnt < 1).sum()),
+                pairs=int(len(ai)), max_depth=float(depth.max(initial=0.0)),
+                depths=depth[touch])
+
+
+def _probe_min_reverse(geo, ai, bj):
+    out = np.empty(len(ai))
+    if len(ai) == 0:
+        return out
+    s0, s1 = geo.ranges[0]
+    _probe_min_kernel(geo.ops, geo.lk, geo.lr, s0, s1, geo.pack.shell,
+                      np.ascontiguousarray(geo.img_pos[bj]),
+                      np.ascontiguousarray(geo.img_rot[bj]),
+                      np.ascontiguousarray(geo.pack.positions[ai]),
+                      np.ascontiguousarray(geo.R[ai].reshape(-1, 9)), out)
+    return out
+
+
+def orientation(pack: Pack):
+    """|cos theta| of each element axis from vertical (world y).
+
+    The axis in the world is R(q_i) @ pack.axis_home. Returns a dict: cos (N,), mean, sem (the
+    sample standard error) and sem_iso = (1/sqrt 12)/sqrt N, the standard error of the mean for
+    an isotropic axis, whose |cos| is uniform on [0, 1] with mean 1/2.
+    """
+    ax = pack.rotations() @ pack.axis_home
+    c = np.abs(ax[:, 1])
+    n = len(c)
+    return dict(cos=c, mean=float(c.mean()),
+                sem=float(c.std(ddof=1) / math.sqrt(n)) if n > 1 else math.nan,
+                sem_iso=float(1.0 / math.sqrt(12.0) / math.sqrt(n)))
+
+
+def floor_and_box(pack: Pack, y_top=None):
+    """Containment: the lowest probe of each body (world y; the floor is y = 0) and whether every
+    centre lies in the periodic box [0, L_x) x [0, L_z) (and below ``y_top`` if given)."""
+    world_y = pack.positions[:, 1, None] + np.einsum("nj,mj->nm", pack.rotations()[:, 1, :],
+                                                     pack.shell)
+    low = world_y.min(axis=1) if pack.shell.size else pack.positions[:, 1]
+    Lx, Lz = pack.box
+    x, y, z = pack.positions.T
+    inside = (x >= 0) & (x < Lx) & (z >= 0) & (z < Lz) & (y > 0)
+    if y_top is not None:
+        inside &= y < y_top
+    return dict(lowest_probe=low, min_lowest_probe=float(low.min()),
+                all_in_box=bool(inside.all()), n_outside=int((~inside).sum()))
+
+
+def certificate_check(builder, root, n=200_000, seed=11, extent=1.4, tol=1e-12):
+    """Equation 1 tested on exterior probes (page Step 2).
+
+    Points are drawn at radii ``R_ball (1 + U * extent)`` about the root ball's centre in
+    uniformly random directions; the bound requires phi >= |p - c| - R_ball. Returns a dict:
+    min_slack (min of phi minus the bound), violating (fraction), worst_ratio (min of
+    phi / bound over violations, 1 if none) and the ball. A violation is a slack below
+    ``-tol * (1 + R_ball)``: an exact leaf (a sphere) meets the bound with equality, and its
+    last-bit rounding is not a violation.
+    """
+    c, rb, cert = builder.node_bound(root)
+    if not math.isfinite(rb):
+        raise ValueError("root has an unbounded ball (a half-space on the left)")
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    r = rb * (1.0 + rng.random(n) * extent)
+    p = c + u * r[:, None]
+    lower = r - rb
+    phi = builder.eval_root(root, p)
+    slack = phi - lower
+    viol = slack < -tol * (1.0 + rb)
+    worst = float((phi[viol] / lower[viol]).min()) if viol.any() else 1.0
+    return dict(min_slack=float(slack.min()), violating=float(viol.mean()), worst_ratio=worst,
+                ball_centre=c.tolist(), ball_radius=float(rb), certified=bool(cert))
+
+
+def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
+    """eps(t) = 1 - f_env s(t) with s(t) = V_solid(t) / V_env by implicit quadrature.
+
+    ``make(t)`` returns an :class:`~peclet.packing.elements.Element` (default: the page's sweep
+    ring :func:`~peclet.packing.elements.pall_ring_of_thickness`). Volumes come from
+    ``SceneBuilder.body_properties`` (quadrature, not Monte Carlo) with its volume_error.
+    Returns a list of dicts: t, t_over_d, s, s_err, eps, eps_err (propagated from s_err and
+    f_env_se, added in quadrature).
+    """
+    from .elements import pall_ring_of_thickness
+
+    make = pall_ring_of_thickness if make is None else make
+    rows = []
+    for t in thicknesses:
+        el = make(float(t))
+        lo, hi = el.bounds
+        props = _body_properties(el.builder, el.root, lo, hi, **quad_kw)
+        s = props.volume / el.envelope_volume
+        s_err = float(props.volume_error) / el.envelope_volume
+        d = 2.0 * el.params["r_outer"]
+        eps = 1.0 - f_env * s
+        rows.append(dict(t=float(t), t_over_d=float(t) / d, s=float(s), s_err=s_err,
+                         eps=float(eps), eps_err=float(math.hypot(s * f_env_se, f_env * s_err))))
+    return rows
+
+
+def _body_properties(builder, root, lo, hi, **kw):
+    """``SceneBuilder.body_properties`` (the quadrature of peclet.core.geom)."""
+    if hasattr(builder, "body_properties"):
+        return builder.body_properties(root, lo, hi, **kw)
+    from peclet.core.geom import quadrature
+    return quadrature.body_properties(builder, root, lo, hi, **kw)
+
+
+def surface_mesh(builder, root, half, n):
+    """Marching-cubes mesh of the zero level set of ``root`` baked on an ``n``^3 lattice over
+    [-half, half]^3. Returns (verts (V, 3), faces (F, 3), area). The area converges to the true
+    surface area as O(h^2) on smooth parts; sharp edges are rounded off at the lattice scale."""
+    from skimage import measure
+
+    if int(n) < 3:
+        raise ValueError(f"n must be an integer >= 3, got {n!r}")
+    n = int(n)
+    h = 2.0 * half / (n - 1)
+    g = builder.bake(root, origin=[-half] * 3, spacing=[h] * 3, dims=[n] * 3)
+    vol = np.ascontiguousarray(g.reshape(n, n, n, order="F"))
+    if not (vol.min() < 0.0 < vol.max()):
+        raise ValueError("the lattice does not straddle the surface: enlarge half")
+    v, f, _, _ = measure.marching_cubes(vol, level=0.0, spacing=(h,) * 3)
+    v = v - half
+    return v, f, float(measure.mesh_surface_area(v, f))

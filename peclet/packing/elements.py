@@ -1,0 +1,277 @@
+"""Packing elements as certified CSG trees.
+
+Every constructor builds one element in its *authoring frame* (origin-centred, the element's
+axis on +y, lengths in the user's unit; the Pall-ring defaults are in units of the outer
+diameter D = 1, as on the reference page) and returns an :class:`Element`, which unpacks as
+``builder, root = pall_ring()``.
+
+Certified by construction (DESIGN.md §3): the solid that bounds the element (a distance-exact
+tube, torus, sphere or cone) is always the LEFT child of every difference/intersection, and
+everything on the right is 1-Lipschitz, so ``builder.node_bound(root)[2]`` is True for every
+element and the scene query may prune it. Each constructor checks that claim before returning.
+
+Where it is meaningful an element also carries its *envelope*: the convex solid it is inscribed
+in (the cylinder of a ring, the element itself for a sphere or a solid cylinder), as a tree in
+the same builder and frame, with its exact volume. The envelope packing fraction f_env of a
+pack is measured against it (page Step 6).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from peclet.core import geom
+
+__all__ = ["Element", "pall_ring", "raschig_ring", "berl_saddle", "intalox_saddle", "sphere",
+           "solid_cylinder", "ELEMENTS", "qy"]
+
+#: The reference page's Pall ring, in units of the outer diameter.
+PAGE_PALL = dict(r_outer=0.5, height=1.0, thickness=0.12, n_windows=4, window_y=0.24,
+                 window_half=(0.16, 0.17, 0.13), web_half=(0.40, 0.06, 0.06))
+
+
+@dataclass
+class Element:
+    """A packing element: a certified CSG tree plus what analysis needs to know about it.
+
+    Iterating yields ``(builder, root)`` so that ``b, root = pall_ring()`` works.
+
+    Attributes
+    ----------
+    builder, root
+        The tree (authoring frame; axis on +y where the element has one).
+    name
+        Element kind, e.g. ``"pall_ring"``.
+    params
+        The validated construction parameters.
+    bounds
+        ``(lo, hi)``: an axis-aligned box that contains the solid with a margin, suitable for
+        quadrature and for baking.
+    envelope_root, envelope_volume
+        The convex envelope as a tree in ``builder`` (same frame) and its exact volume, or None
+        where no envelope is meaningful (saddles).
+    min_feature
+        The thinnest feature (wall or web thickness), for probe-spacing checks.
+    """
+
+    builder: geom.SceneBuilder
+    root: int
+    name: str
+    params: dict
+    bounds: tuple
+    envelope_root: int | None = None
+    envelope_volume: float | None = None
+    min_feature: float = math.nan
+    axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+
+    def __iter__(self):
+        yield self.builder
+        yield self.root
+
+
+def qy(a):
+    """Quaternion (x, y, z, w) of a rotation by angle ``a`` (radians) about +y."""
+    return [0.0, float(np.sin(0.5 * a)), 0.0, float(np.cos(0.5 * a))]
+
+
+# ---------------------------------------------------------------------- validation helpers
+def _num(name, value, lo=0.0, hi=math.inf, lo_open=True, hi_open=False):
+    """``value`` as a float in the given interval, else ValueError naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    ok_lo = v > lo if lo_open else v >= lo
+    ok_hi = v < hi if hi_open else v <= hi
+    if not (math.isfinite(v) and ok_lo and ok_hi):
+        rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        raise ValueError(f"{name} must be in {rng}, got {value!r}")
+    return v
+
+
+def _triple(name, value):
+    try:
+        arr = [float(v) for v in value]
+    except TypeError:
+        raise ValueError(f"{name} must be 3 positive half-extents, got {value!r}") from None
+    if len(arr) != 3 or not all(math.isfinite(v) and v > 0 for v in arr):
+        raise ValueError(f"{name} must be 3 finite half-extents > 0, got {value!r}")
+    return tuple(arr)
+
+
+def _box_bounds(rx, hy, rz, margin):
+    return (np.array([-rx - margin, -hy - margin, -rz - margin]),
+            np.array([rx + margin, hy + margin, rz + margin]))
+
+
+def _certified(b, root, name):
+    _, _, cert = b.node_bound(root)
+    if not cert:  # construction bug, not a user error: the rules above guarantee it
+        raise AssertionError(f"{name}: tree is not certified")
+    return root
+
+
+def _solid_cylinder_node(b, radius, height):
+    # a cone with equal radii is the exact solid cylinder (hollow_cylinder needs t < rOuter)
+    return b.add_leaf("cone", [radius, radius, 0.5 * height])
+
+
+# ---------------------------------------------------------------------- elements
+def pall_ring(r_outer=0.5, height=1.0, thickness=0.12, n_windows=4, window_y=0.24,
+              window_half=(0.16, 0.17, 0.13), web_half=(0.40, 0.06, 0.06), builder=None,
+              certified=True):
+    """The reference page's Pall ring: a tube minus two rows of windows, plus two inner webs.
+
+    Parameters (lengths in the user's unit; defaults are the page's, D = 2 r_outer = 1)
+    ----------
+    r_outer : outer radius, > 0.
+    height : tube height along y, > 0.
+    thickness : wall thickness, in (0, r_outer).
+    n_windows : windows per row, integer in [1, 16]; the lower row is offset by half a pitch.
+    window_y : height of the two window rows (at +-window_y), in [0, height/2).
+    window_half : (radial, axial, tangential) half-extents of each window box, centred on the
+        outer radius; the radial half-extent must be >= thickness so the window spans the wall, the axial one
+        < height/2.
+    web_half : (x, y, z) half-extents of the two crossed web plates at y = +-window_y; x must be
+        <= r_outer - thickness/2 (the web ends inside the wall).
+    builder : an existing SceneBuilder to add to (default: a new one).
+    certified : True (default) builds the tube from the distance-exact ``hollow_cylinder``;
+        False builds the page's sign-exact counter-example from ``hollow_cylinder_shell`` (same
+        solid, no certificate), kept only to demonstrate the difference (page Step 2).
+
+    Construction: ``union(union(difference(tube, windows), web1), web2)``, tube on the left of
+    the difference so the root keeps the tube's certified ball.
+    """
+    ro = _num("r_outer", r_outer)
+    h = _num("height", height)
+    t = _num("thickness", thickness, 0.0, ro, hi_open=True)
+    if isinstance(n_windows, bool) or not float(n_windows).is_integer() \
+            or not 1 <= int(n_windows) <= 16:
+        raise ValueError(f"n_windows must be an integer in [1, 16], got {n_windows!r}")
+    nw = int(n_windows)
+    yw = _num("window_y", window_y, 0.0, 0.5 * h, lo_open=False, hi_open=True)
+    wr, wa, wt = _triple("window_half", window_half)
+    if wr < t:
+        raise ValueError(f"window_half[0] (radial) must be >= thickness = {t:g} so the window, "
+                         f"centred on the outer radius, cuts through the wall, got {wr:g}")
+    if wa >= 0.5 * h:
+        raise ValueError(f"window_half[1] (axial) must be < height/2 = {0.5 * h:g}, got {wa:g}")
+    web = _triple("web_half", web_half)
+    if web[0] > ro - 0.5 * t + 1e-12:
+        raise ValueError(f"web_half[0] must be <= r_outer - thickness/2 = {ro - 0.5 * t:g}, "
+                         f"got {web[0]:g}")
+    b = geom.SceneBuilder() if builder is None else builder
+    if certified:
+        tube = b.add_leaf("hollow_cylinder", [ro, h, t])
+    else:  # the shell leaf is about z: rotate it onto y
+        tube = b.add_leaf("hollow_cylinder_shell", [ro, ro - t, h],
+                          rotation=[math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4)])
+    wins = []
+    for row, ysign in enumerate((+1, -1)):
+        for k in range(nw):
+            phi = 2 * np.pi * k / nw + (np.pi / nw if row else 0.0)
+            wins.append(b.add_leaf("box", [wr, wa, wt],
+                                   translation=[ro * np.cos(phi), ysign * yw, ro * np.sin(phi)],
+                                   rotation=qy(-phi)))
+    w = wins[0]
+    for x in wins[1:]:
+        w = b.add_union(w, x)
+    shell = b.add_difference(tube, w)
+    root = b.add_union(
+        b.add_union(shell, b.add_leaf("box", list(web), translation=[0.0, +yw, 0.0])),
+        b.add_leaf("box", list(web), translation=[0.0, -yw, 0.0], rotation=qy(np.pi / 2)))
+    if certified:
+        _certified(b, root, "pall_ring")
+    env = _solid_cylinder_node(b, ro, h)
+    params = dict(r_outer=ro, height=h, thickness=t, n_windows=nw, window_y=yw,
+                  window_half=(wr, wa, wt), web_half=web)
+    return Element(b, root, "pall_ring", params, _box_bounds(ro, 0.5 * h, ro, 0.12 * ro),
+                   env, math.pi * ro * ro * h, min(t, 2 * web[1], 2 * web[2]))
+
+
+def pall_ring_of_thickness(thickness, r_outer=0.5, height=1.0, **kw):
+    """The page's sweep construction (Step 6): the Pall ring with webs scaled with the wall,
+    ``web_half = (r_outer - t, t/2, t/2)``; other arguments as :func:`pall_ring`."""
+    t = _num("thickness", thickness, 0.0, _num("r_outer", r_outer), hi_open=True)
+    return pall_ring(r_outer=r_outer, height=height, thickness=t,
+                     web_half=(r_outer - t, 0.5 * t, 0.5 * t), **kw)
+
+
+def raschig_ring(r_outer=0.5, height=1.0, thickness=0.12, builder=None):
+    """A Raschig ring: the plain distance-exact tube (axis y). thickness in (0, r_outer)."""
+    ro = _num("r_outer", r_outer)
+    h = _num("height", height)
+    t = _num("thickness", thickness, 0.0, ro, hi_open=True)
+    b = geom.SceneBuilder() if builder is None else builder
+    root = _certified(b, b.add_leaf("hollow_cylinder", [ro, h, t]), "raschig_ring")
+    env = _solid_cylinder_node(b, ro, h)
+    return Element(b, root, "raschig_ring", dict(r_outer=ro, height=h, thickness=t),
+                   _box_bounds(ro, 0.5 * h, ro, 0.12 * ro), env, math.pi * ro * ro * h, t)
+
+
+def berl_saddle(R=0.5, r=0.2, builder=None):
+    """A Berl-like saddle: the solid torus (axis y, centre-line radius R, tube radius r) cut in
+    half by the plane x = 0 (``torus ∩ half_space{x <= 0}``). The arch's inner face, toward the
+    axis, has negative Gaussian curvature: the saddle. r in (0, R).
+
+    The half-space is on the RIGHT of the intersection, so the torus's certified ball is kept.
+    """
+    Rr = _num("R", R)
+    rr = _num("r", r, 0.0, Rr, hi_open=True)
+    b = geom.SceneBuilder() if builder is None else builder
+    torus = b.add_leaf("torus", [Rr, rr])
+    cut = b.add_leaf("half_space", [1.0, 0.0, 0.0, 0.0])
+    root = _certified(b, b.add_intersection(torus, cut), "berl_saddle")
+    m = 0.1 * (Rr + rr)
+    bounds = (np.array([-(Rr + rr) - m, -rr - m, -(Rr + rr) - m]),
+              np.array([m, rr + m, Rr + rr + m]))
+    return Element(b, root, "berl_saddle", dict(R=Rr, r=rr), bounds, None, None, 2 * rr)
+
+
+def intalox_saddle(R=0.5, r=0.3, thickness=0.06, builder=None):
+    """An Intalox-like saddle: a curved sheet of negative Gaussian curvature.
+
+    The hollow torus shell (torus(R, r) minus torus(R, r - thickness)), kept only on its inner
+    side (inside the solid cylinder of radius R about the axis) and on one side of the plane
+    x = 0: ``((torus_o − torus_i) ∩ cylinder_R) ∩ half_space{x <= 0}``. r in (0, R), thickness
+    in (0, r). The outer torus stays the left-most child, so the root is certified.
+    """
+    Rr = _num("R", R)
+    rr = _num("r", r, 0.0, Rr, hi_open=True)
+    t = _num("thickness", thickness, 0.0, rr, hi_open=True)
+    b = geom.SceneBuilder() if builder is None else builder
+    shell = b.add_difference(b.add_leaf("torus", [Rr, rr]), b.add_leaf("torus", [Rr, rr - t]))
+    inner = b.add_intersection(shell, _solid_cylinder_node(b, Rr, 2.0 * rr + 0.02 * Rr))
+    root = _certified(b, b.add_intersection(inner, b.add_leaf("half_space", [1, 0, 0, 0])),
+                      "intalox_saddle")
+    m = 0.1 * (Rr + rr)
+    bounds = (np.array([-Rr - m, -rr - m, -Rr - m]), np.array([m, rr + m, Rr + m]))
+    return Element(b, root, "intalox_saddle", dict(R=Rr, r=rr, thickness=t), bounds, None, None,
+                   t)
+
+
+def sphere(radius=0.5, builder=None):
+    """A solid sphere of ``radius`` > 0; its own envelope."""
+    r = _num("radius", radius)
+    b = geom.SceneBuilder() if builder is None else builder
+    root = _certified(b, b.add_leaf("sphere", [r]), "sphere")
+    return Element(b, root, "sphere", dict(radius=r), _box_bounds(r, r, r, 0.12 * r), root,
+                   4.0 / 3.0 * math.pi * r ** 3, 2 * r)
+
+
+def solid_cylinder(radius=0.5, height=1.0, builder=None):
+    """A solid cylinder (axis y): the exact cone leaf with equal radii; its own envelope."""
+    r = _num("radius", radius)
+    h = _num("height", height)
+    b = geom.SceneBuilder() if builder is None else builder
+    root = _certified(b, _solid_cylinder_node(b, r, h), "solid_cylinder")
+    return Element(b, root, "solid_cylinder", dict(radius=r, height=h),
+                   _box_bounds(r, 0.5 * h, r, 0.12 * max(r, 0.5 * h)), root,
+                   math.pi * r * r * h, min(2 * r, h))
+
+
+#: Constructors by name (the CLI and tests iterate over it).
+ELEMENTS = {"pall_ring": pall_ring, "raschig_ring": raschig_ring, "berl_saddle": berl_saddle,
+            "intalox_saddle": intalox_saddle, "sphere": sphere, "solid_cylinder": solid_cylinder}

@@ -1,0 +1,146 @@
+"""Figures of the pipeline (matplotlib, Agg backend, PNG), one function per figure.
+
+Every function takes plain arrays, writes ``path`` atomically and returns it. World frame: y up;
+3-D plots show world y as the vertical axis.
+"""
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+
+from .freeze import atomic_write  # noqa: E402
+
+__all__ = ["ring_views", "kinetic_energy", "pack_by_height", "orientation_histogram",
+           "voidage_sweep"]
+
+_STYLE = {"figure.dpi": 130, "font.size": 9, "axes.axisbelow": True,
+          "figure.facecolor": "white", "savefig.bbox": "tight"}
+
+#: Published bed voidage of 25 mm Pall rings (Billet & Schultes 1999; Stichlmair et al. 1989).
+BANDS = {"metal / plastic 25 mm Pall rings": (0.90, 0.95, "#4c72b0", "#33517d"),
+         "ceramic 25 mm Pall rings": (0.74, 0.78, "#c44e52", "#8c3439")}
+
+
+def _save(fig, path):
+    def write(tmp):
+        fig.savefig(tmp, format="png")
+    try:
+        return atomic_write(path, write)
+    finally:
+        plt.close(fig)
+
+
+def _shaded(tri, color, light=(0.4, 0.5, 0.75)):
+    """Per-face colours: ``color`` (any matplotlib colour) Lambert-shaded by the face normal
+    (triangles ``tri`` (F, 3, 3) in plot coordinates), so 3-D meshes read as solids."""
+    rgb = np.asarray(matplotlib.colors.to_rgb(color))
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+    lam = np.abs(n @ (np.asarray(light) / np.linalg.norm(light)))
+    k = (0.45 + 0.55 * lam)[:, None]
+    return np.clip(np.c_[rgb[None, :] * k, np.ones(len(tri))], 0.0, 1.0)
+
+
+def ring_views(verts, faces, path, extent=0.6):
+    """The element from outside and down the bore (mesh in its authoring frame, axis y)."""
+    with plt.rc_context(_STYLE):
+        fig = plt.figure(figsize=(5.4, 3.0))
+        for k, (elev, azim, ttl) in enumerate([(22, 35, "outside"), (78, 20, "down the bore")]):
+            ax = fig.add_subplot(1, 2, k + 1, projection="3d")
+            # plot (x, z, y) so that the element axis y is vertical on screen
+            tri = verts[faces][:, :, [0, 2, 1]]
+            ax.add_collection3d(Poly3DCollection(tri, facecolors=_shaded(tri, "#8ea9c4"),
+                                                 edgecolor="none"))
+            for lim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
+                lim(-extent, extent)
+            ax.set_box_aspect((1, 1, 1))
+            ax.set_axis_off()
+            ax.view_init(elev=elev, azim=azim)
+            ax.set_title(ttl, fontsize=8)
+        return _save(fig, path)
+
+
+def kinetic_energy(t, ke, phases, dt, path):
+    """Kinetic energy against time, log scale, protocol phases marked (``phases`` as
+    :meth:`Protocol.phases`: [(label, first step)])."""
+    t = np.asarray(t, float)
+    ke = np.asarray(ke, float)
+    with plt.rc_context(_STYLE):
+        fig, ax = plt.subplots(figsize=(6.0, 2.4))
+        floor = max(ke[ke > 0].min() if np.any(ke > 0) else 1e-12, 1e-12)
+        ax.semilogy(t, np.maximum(ke, floor), color="#4c72b0", lw=1.1)
+        top = ke.max() if ke.size else 1.0
+        for lbl, s in phases:
+            ax.axvline(s * dt, color="0.75", lw=0.7, zorder=0)
+            ax.text(s * dt + 0.01 * max(t.max(initial=dt), dt), 0.6 * top, lbl, fontsize=7,
+                    color="0.35")
+        ax.set_xlabel("time")
+        ax.set_ylabel("kinetic energy")
+        ax.grid(alpha=0.3)
+        return _save(fig, path)
+
+
+def pack_by_height(positions, rotations, verts, faces, box, path):
+    """The frozen pack: every body's mesh (home frame verts) placed by its rotation (N, 3, 3)
+    and position, coloured by the height of its centre."""
+    P = np.asarray(positions, float)
+    Lx, Lz = box
+    with plt.rc_context(_STYLE):
+        fig = plt.figure(figsize=(4.2, 4.6))
+        ax = fig.add_subplot(1, 1, 1, projection="3d")
+        col = plt.cm.viridis(plt.Normalize(P[:, 1].min(), P[:, 1].max() + 1e-12)(P[:, 1]))
+        for i in range(len(P)):
+            tri = (verts @ rotations[i].T + P[i])[faces][:, :, [0, 2, 1]]
+            ax.add_collection3d(Poly3DCollection(tri, facecolors=_shaded(tri, col[i][:3]),
+                                                 edgecolor="none"))
+        ytop = P[:, 1].max() + 0.6
+        ax.set_xlim(0, Lx)
+        ax.set_ylim(0, Lz)
+        ax.set_zlim(0, ytop)
+        ax.set_box_aspect((Lx, Lz, ytop))
+        ax.set_axis_off()
+        ax.view_init(elev=16, azim=-62)
+        ax.set_title("frozen pack, coloured by height", fontsize=8)
+        return _save(fig, path)
+
+
+def orientation_histogram(cos, path, bins=8):
+    """Histogram (density) of |cos theta| of the element axes from vertical, with the isotropic
+    expectation (uniform density 1)."""
+    with plt.rc_context(_STYLE):
+        fig, ax = plt.subplots(figsize=(3.6, 2.8))
+        ax.hist(np.asarray(cos, float), bins=np.linspace(0, 1, bins + 1), density=True,
+                color="#8ea9c4", edgecolor="w")
+        ax.axhline(1.0, color="#c44e52", lw=1.4, label="isotropic")
+        ax.set_xlabel(r"$|\cos\theta|$ of the ring axis from vertical")
+        ax.set_ylabel("density")
+        ax.legend(fontsize=8, frameon=False)
+        ax.grid(alpha=0.3)
+        return _save(fig, path)
+
+
+def voidage_sweep(rows, eps, t_over_d, path):
+    """Bed voidage 1 - f_env s(t) against wall thickness t/D (``rows`` from
+    :func:`~peclet.packing.analysis.wall_sweep`, error bars eps_err), the measured pack as a
+    point, and the published bands."""
+    a = np.array([r["t_over_d"] for r in rows])
+    e = np.array([r["eps"] for r in rows])
+    de = np.array([r["eps_err"] for r in rows])
+    with plt.rc_context(_STYLE):
+        fig, ax = plt.subplots(figsize=(5.0, 3.2))
+        for lbl, (lo, hi, c, tc) in BANDS.items():
+            ax.axhspan(lo, hi, color=c, alpha=0.15)
+            ax.text(0.10, 0.5 * (lo + hi), lbl, fontsize=7, color=tc, va="center")
+        ax.errorbar(a, e, yerr=de, fmt="o-", color="#333333", lw=1.2, ms=4, capsize=2,
+                    label=r"$1 - f_{env}\,s(t)$, $f_{env}$ measured, $s$ by quadrature")
+        ax.plot([t_over_d], [eps], "o", ms=9, color="#dd8452",
+                label=r"this pack (measured $\varepsilon$)")
+        ax.set_xlabel("wall thickness $t/D$")
+        ax.set_ylabel(r"bed voidage $\varepsilon$")
+        ax.legend(fontsize=7, frameon=False, loc="lower left")
+        ax.grid(alpha=0.3)
+        return _save(fig, path)

@@ -1,0 +1,274 @@
+"""The whole reference page (Steps 1-7) as one function: :func:`run`.
+
+Build the Pall ring (Step 1), test its certificate against the sign-exact twin (Step 2),
+measure it by quadrature and shell it (Step 3), pour / tap / quench (Step 4), analyse the frozen
+pack on the exact trees (Step 5), sweep the wall thickness (Step 6) and freeze it (Step 7).
+Writes into ``out``: ``pall_ring_pack.npz``, ``results.json`` (both atomic) and the figures
+``ring.png``, ``kinetic_energy.png``, ``pack.png``, ``orientation.png``, ``voidage_sweep.png``.
+Units: the ring's outer diameter D = 1; time in the page's units (g = 9.81).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+
+import numpy as np
+
+from peclet.core.geom.transforms import compose, quat_to_matrix
+
+from . import analysis, elements, figures
+from .freeze import Pack, atomic_write, save_pack
+from .pour import Protocol, pour
+
+__all__ = ["run", "PAGE", "results_table", "set_threads"]
+
+#: The reference page's Results (Step 7 table and the text), for the side-by-side table.
+PAGE = dict(cert_violating=0.0, sign_exact_violating=0.2468, sign_exact_worst=0.7071,
+            volume_fraction=0.3413, area=6.5607, specific_surface=8.353,
+            probe_spacing_median=0.0369, eps=0.800, eps_spread=0.0011, f_env=0.582,
+            z_mean=3.75, rattlers=0, cos_mean=0.526, cos_sem=0.042, ke_ratio=4.7e-4,
+            max_overlap=0.027, max_overlap_wall=0.23, double=0.000092,
+            eps_thin=0.957, eps_thick=0.743, runtime_s=346.0)
+
+SWEEP_T = (0.024, 0.04, 0.06, 0.08, 0.12, 0.16)
+
+
+def set_threads(threads):
+    """``numba.set_num_threads(threads)`` after checking 1 <= threads <= NUMBA_NUM_THREADS."""
+    import numba
+
+    cap = int(numba.config.NUMBA_NUM_THREADS)
+    if isinstance(threads, bool) or not float(threads).is_integer() \
+            or not 1 <= int(threads) <= cap:
+        raise ValueError(f"threads must be an integer in [1, {cap}] "
+                         f"(NUMBA_NUM_THREADS={cap}), got {threads!r}")
+    numba.set_num_threads(int(threads))
+    return int(threads)
+
+
+def _home_transform(builder, root, home_root):
+    """The transform that carries the authoring frame to the home frame: home = outer ∘ own."""
+    _, _, _, _, t0, q0, s0 = builder.node(root)
+    _, _, _, _, t1, q1, s1 = builder.node(home_root)
+    inv_q0 = np.array([-q0[0], -q0[1], -q0[2], q0[3]])
+    inv = (-(quat_to_matrix(inv_q0) @ t0) / s0, inv_q0, 1.0 / s0)
+    return compose((t1, q1, s1), inv)
+
+
+def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
+        mc_samples=400_000, quad_n=32, shell_resolution=112, shell_points=1200,
+        sweep=SWEEP_T, sweep_n=16, mesh_n=150, progress=True, write_figures=True, log=print):
+    """Run the page end to end; returns the results dict (also written to results.json).
+
+    rings: number of rings (>= 1); seed: start-cloud seed; threads: numba threads (None keeps
+    the current setting); steps_scale: multiplies every protocol step count (1 = the page);
+    box: periodic box side (in D); mc_samples: Monte Carlo points per bulk window; quad_n,
+    shell_resolution, shell_points: ``scene_particle.build`` knobs; sweep: wall thicknesses t
+    (in D) for Step 6 and sweep_n their quadrature resolution; mesh_n: marching-cubes lattice for the ring figure and surface area.
+    """
+    from scipy.spatial import cKDTree
+
+    from peclet.dem import scene_particle
+
+    if isinstance(rings, bool) or not float(rings).is_integer() or rings < 1:
+        raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
+    rings = int(rings)
+    if threads is not None:
+        set_threads(threads)
+    protocol = Protocol().scaled(steps_scale) if steps_scale != 1.0 else Protocol()
+    os.makedirs(out, exist_ok=True)
+    T0 = time.perf_counter()
+    timing = {}
+    res = dict(config=dict(rings=rings, seed=seed, threads=threads, steps_scale=steps_scale,
+                           box=box, mc_samples=mc_samples, quad_n=quad_n, sweep_n=sweep_n,
+                           shell_points=shell_points, protocol=protocol.__dict__.copy()))
+
+    # ---- Steps 1-2: the ring and its certificate
+    t = time.perf_counter()
+    ring = elements.pall_ring()
+    twin = elements.pall_ring(certified=False)
+    b, root = ring
+    cert = analysis.certificate_check(b, root)
+    bad = analysis.certificate_check(twin.builder, twin.root)
+    q = np.random.default_rng(11).uniform(-1.0, 1.0, size=(200_000, 3))
+    same = float((np.sign(b.eval_root(root, q))
+                  == np.sign(twin.builder.eval_root(twin.root, q))).mean())
+    res["certificate"] = dict(certified=cert, sign_exact=bad, same_sign=same,
+                              nodes=int(b.num_nodes()))
+    timing["certificate"] = time.perf_counter() - t
+
+    # ---- Step 3: measure, reframe, shell
+    t = time.perf_counter()
+    sp = scene_particle.build(b, root, bounds=ring.bounds, n=quad_n,
+                              shell_resolution=shell_resolution,
+                              target_shell_points=shell_points)
+    timing["scene_particle"] = time.perf_counter() - t
+    tq, qq, sq = _home_transform(b, root, sp.home_root)
+    env_home = b.add_reframed(ring.envelope_root, translation=tq, rotation=qq, scale=sq)
+    axis_home = quat_to_matrix(qq) @ np.array([0.0, 1.0, 0.0])
+    d_nn, _ = cKDTree(sp.shell).query(sp.shell, k=2)
+    t = time.perf_counter()
+    verts, faces, area = analysis.surface_mesh(b, root, 0.62, mesh_n)
+    timing["surface_mesh"] = time.perf_counter() - t
+    v_env = ring.envelope_volume
+    res["particle"] = dict(
+        volume=float(sp.volume), volume_error=float(sp.volume_error),
+        volume_fraction=float(sp.volume / v_env), envelope_volume=v_env,
+        com=np.asarray(sp.com, float).tolist(), principal=np.asarray(sp.principal).tolist(),
+        moment_error=float(np.max(sp.moment_error)), quat=np.asarray(sp.quat).tolist(),
+        bounding_radius=float(sp.bounding_radius), shell_points=int(len(sp.shell)),
+        probe_spacing_median=float(np.median(d_nn[:, 1])),
+        probe_spacing_p90=float(np.percentile(d_nn[:, 1], 90)),
+        min_feature=float(ring.min_feature), surface_area=area,
+        specific_surface=area / v_env, mesh_n=int(mesh_n))
+
+    # ---- Step 4: pour
+    t = time.perf_counter()
+    pr = pour(sp, n=rings, box=box, seed=seed, protocol=protocol, progress=progress)
+    timing["pour"] = time.perf_counter() - t
+    sim = pr.sim
+    wall_t = ring.params["thickness"]
+    e_scale = rings * sp.mass * 9.81 * 1.0      # lifting the whole bed one diameter
+    ke_end = float(sim.kinetic_energy())
+    max_ov_engine = float(sim.compute_overlaps())
+    res["pour"] = dict(steps=pr.steps, seconds=pr.seconds,
+                       ms_per_step=1e3 * pr.seconds / max(pr.steps, 1), ke_end=ke_end,
+                       ke_ratio=ke_end / e_scale, max_overlap_engine=max_ov_engine,
+                       bed_y=[float(pr.positions[:, 1].min()), float(pr.positions[:, 1].max())])
+
+    # ---- Step 7 (frozen state first: every statistic below is computed from it)
+    ni, nr, _, _ = b.encode()
+    pack = Pack(pr.positions, pr.quaternions, [box, box], sp.volume, ni, nr, sp.home_root,
+                sp.bounding_radius, sp.shell, sp.mass, sp.inv_inertia_unit, env_home, v_env,
+                axis_home)
+    npz = save_pack(os.path.join(out, "pall_ring_pack.npz"), pack)
+    res["pack_file"] = dict(path=os.path.abspath(npz), kib=os.path.getsize(npz) / 1024)
+
+    # ---- Step 5: the pack, numerically
+    t = time.perf_counter()
+    geo = analysis.PackGeometry(pack)
+    windows, wscale = analysis.bulk_windows(pack)
+    fr = [analysis.cover_fractions(geo, w, mc_samples, seed=k) for k, w in enumerate(windows)]
+    con = analysis.contacts(geo)
+    ori = analysis.orientation(pack)
+    box_chk = analysis.floor_and_box(pack, y_top=60.0)
+    eps_all = np.array([f["eps"] for f in fr])
+    res["pack"] = dict(
+        windows=fr, window_scale=wscale, eps=fr[0]["eps"], eps_se=fr[0]["eps_se"],
+        eps_mean=float(eps_all.mean()), eps_spread=float(eps_all.std()),
+        f_env=fr[0]["f_env"], f_env_se=fr[0]["f_env_se"], double=fr[0]["double"],
+        double_se=fr[0]["double_se"], z_mean=con["z_mean"], rattlers=con["rattlers"],
+        contacts_per_ring=con["counts"].tolist(), candidate_pairs=con["pairs"],
+        max_overlap=con["max_depth"], max_overlap_wall=con["max_depth"] / wall_t,
+        max_overlap_engine_wall=max_ov_engine / wall_t,
+        cos_mean=ori["mean"], cos_sem=ori["sem"], cos_sem_iso=ori["sem_iso"],
+        cos=ori["cos"].tolist(), lowest_probe=box_chk["min_lowest_probe"],
+        all_in_box=box_chk["all_in_box"], n_outside=box_chk["n_outside"])
+    timing["analysis"] = time.perf_counter() - t
+
+    # ---- Step 6: the wall-thickness sweep, s(t) by quadrature
+    t = time.perf_counter()
+    rows = analysis.wall_sweep(sweep, fr[0]["f_env"], fr[0]["f_env_se"], n=sweep_n)
+    res["sweep"] = rows
+    timing["sweep"] = time.perf_counter() - t
+
+    # ---- figures
+    if write_figures:
+        t = time.perf_counter()
+        mv, mf, _ = analysis.surface_mesh(pack.builder(), pack.home_root, 0.62, 46)
+        figs = dict(
+            ring=figures.ring_views(verts, faces, os.path.join(out, "ring.png")),
+            kinetic_energy=figures.kinetic_energy(pr.t, pr.ke, protocol.phases(), protocol.dt,
+                                                  os.path.join(out, "kinetic_energy.png")),
+            pack=figures.pack_by_height(pack.positions, pack.rotations(), mv, mf, pack.box,
+                                        os.path.join(out, "pack.png")),
+            orientation=figures.orientation_histogram(ori["cos"],
+                                                      os.path.join(out, "orientation.png")),
+            voidage_sweep=figures.voidage_sweep(rows, fr[0]["eps"], wall_t / 1.0,
+                                                os.path.join(out, "voidage_sweep.png")))
+        res["figures"] = {k: os.path.abspath(v) for k, v in figs.items()}
+        timing["figures"] = time.perf_counter() - t
+    timing["total"] = time.perf_counter() - T0
+    res["timing"] = timing
+
+    def write(tmp):
+        with open(tmp, "w") as fh:
+            json.dump(_jsonable(res), fh, indent=1)
+    res["results_json"] = os.path.abspath(atomic_write(os.path.join(out, "results.json"),
+                                                       write))
+    if log is not None:
+        log(results_table(res))
+    return res
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        return None if not math.isfinite(float(x)) else float(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    return x
+
+
+def results_table(res):
+    """The page's Results table with our numbers beside the page's, as text."""
+    c, p, k, s = res["certificate"], res["particle"], res["pack"], res["pour"]
+    sw = {round(r["t_over_d"], 4): r for r in res["sweep"]}
+    thin, thick = sw.get(0.024), sw.get(0.16)
+    P = PAGE
+    rows = [
+        ("certified tree: exterior probes violating Eq. 1",
+         f"{100 * c['certified']['violating']:.2f}% (min slack {c['certified']['min_slack']:+.1e})",
+         "0.00% (min slack +1.9e-12)"),
+        ("sign-exact tree, same solid: violations",
+         f"{100 * c['sign_exact']['violating']:.2f}% (worst ratio "
+         f"{c['sign_exact']['worst_ratio']:.4f})", "24.68% (worst ratio 0.7071)"),
+        ("ring solid volume / envelope cylinder",
+         f"{p['volume_fraction']:.6f} (V = {p['volume']:.8f} +- {p['volume_error']:.1e})",
+         "0.3413 (V = 0.268032)"),
+        ("surface area, specific surface",
+         f"{p['surface_area']:.3f} D^2, {p['specific_surface']:.2f} /D (mc {p['mesh_n']}^3)",
+         "6.561 D^2, 8.35 /D"),
+        ("probe spacing (median) vs feature/3",
+         f"{p['probe_spacing_median']:.4f} vs {p['min_feature'] / 3:.4f} "
+         f"({p['shell_points']} probes)", "0.0369 vs 0.0400"),
+        ("bed voidage eps",
+         f"{k['eps']:.3f} +- {k['eps_se']:.3f} (MC); {k['eps_spread']:.4f} over 3 windows",
+         "0.800 (0.0011 over three bulk windows)"),
+        ("envelope packing fraction f_env", f"{k['f_env']:.3f} +- {k['f_env_se']:.3f}",
+         "0.582"),
+        ("mean coordination number", f"{k['z_mean']:.2f}, {k['rattlers']} rattlers",
+         "3.75, 0 rattlers"),
+        ("ring-axis |cos theta|",
+         f"{k['cos_mean']:.3f} +- {k['cos_sem']:.3f} (isotropic 0.500 +- {k['cos_sem_iso']:.3f})",
+         "0.526 +- 0.042 (isotropic 0.500)"),
+        ("residual kinetic energy after the quench",
+         f"{s['ke_ratio']:.1e} of a one-diameter bed lift", "4.7e-04 of a one-diameter bed lift"),
+        ("max contact overlap (probe depth); doubly-covered",
+         f"{k['max_overlap']:.4f} = {100 * k['max_overlap_wall']:.0f}% of the wall; "
+         f"{100 * k['double']:.4f}%", "0.027 = 23% of the wall; 0.0092%"),
+        ("  engine's compute_overlaps()", f"{s['max_overlap_engine']:.4f} = "
+         f"{100 * k['max_overlap_engine_wall']:.0f}% of the wall", "-"),
+        ("lowest probe (floor y = 0); all in box",
+         f"{k['lowest_probe']:+.4f}; {k['all_in_box']}", "-"),
+        ("eps predicted at t/D = 0.024 / 0.16",
+         (f"{thin['eps']:.3f} / {thick['eps']:.3f} (s by quadrature, err "
+          f"{max(thin['s_err'], thick['s_err']):.1e})") if thin and thick else "n/a",
+         "0.957 / 0.743 vs published 0.90-0.95 / 0.74-0.78"),
+        ("pour", f"{s['steps']} steps in {s['seconds']:.1f} s ({s['ms_per_step']:.1f} ms/step)",
+         "3700 steps in 299 s (81 ms/step)"),
+        ("total runtime", f"{res['timing']['total']:.1f} s", f"{P['runtime_s']:.0f} s"),
+    ]
+    w0 = max(len(r[0]) for r in rows)
+    w1 = max(len(r[1]) for r in rows)
+    lines = [f"{'claim':<{w0}}  {'peclet (this run)':<{w1}}  the page",
+             "-" * (w0 + w1 + 40)]
+    lines += [f"{a:<{w0}}  {b_:<{w1}}  {c_}" for a, b_, c_ in rows]
+    return "\n".join(lines)

@@ -1,0 +1,186 @@
+"""Known-bad engines that the certification suite must catch (and their correct twins).
+
+Used by the suite's own tests and by anyone who wants to see a certificate fail:
+
+- :class:`OverclaimingBoundBackend` flags ``hollow_cylinder_shell`` balls certified (it is
+  sign-exact only, so Equation 1 fails far from it);
+- :class:`TreeWalkBackend` evaluates the flat encoding node by node in numpy; with
+  ``flip="torus"`` it flips the sign of every torus leaf;
+- :func:`biased_cell_quadrature` counts cells whose centre has ``phi < bias * h``;
+- :func:`thread_order_pour` sums with a ``prange`` reduction (thread-count dependent);
+- :class:`FixedBufferEngine` never grows its contact buffer (``grow=True`` is the correct twin).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from peclet.core.geom import SceneBuilder, quat_to_matrix
+
+from .backends import ReferenceBackend
+
+__all__ = ["OverclaimingBoundBackend", "TreeWalkBackend", "biased_cell_quadrature",
+           "cell_quadrature", "thread_order_pour", "FixedBufferEngine", "fixed_buffer_engine",
+           "growing_buffer_engine"]
+
+SHELL, HOLLOW_CYLINDER = 4, 2
+
+
+class OverclaimingBoundBackend(ReferenceBackend):
+    """Reference values, but its bound treats ``hollow_cylinder_shell`` as exact (certified)."""
+
+    name = "overclaiming-shell-bound"
+
+    def bound(self, node_ints, node_reals, root):
+        ni = np.array(node_ints, dtype=np.int32)
+        nr = np.array(node_reals, dtype=np.float64)
+        for i in np.nonzero(ni[:, 0] == SHELL)[0]:
+            ro, ri, h = nr[i, :3]
+            # a hollow_cylinder with the same enclosing ball (both are centred at the origin)
+            ni[i, 0] = HOLLOW_CYLINDER
+            nr[i, :3] = (ro, h, min(ro - ri, ro * (1 - 1e-12)))
+        return SceneBuilder.decode(ni, nr).node_bound(int(root))
+
+
+class TreeWalkBackend:
+    """A second evaluator: walks the encoding node by node in numpy (leaf formulas from the
+    reference leaf table). ``flip`` names a leaf kind whose sign is flipped (a planted bug)."""
+
+    def __init__(self, flip=None):
+        from peclet.core.geom import leaf_spec
+        self.flip = None if flip is None else leaf_spec(flip).kind
+        self.name = "tree-walk" if flip is None else f"tree-walk(sign flip: {flip})"
+
+    def evaluate(self, node_ints, node_reals, root, points):
+        return self._node(np.asarray(node_ints), np.asarray(node_reals, float), int(root),
+                          np.asarray(points, float))
+
+    def _node(self, ni, nr, i, p):
+        kind, left, right = (int(v) for v in ni[i])
+        t, q, s = nr[i, 8:11], nr[i, 11:15], nr[i, 15]
+        local = (p - t) @ quat_to_matrix(q) / s
+        if left < 0:
+            b = SceneBuilder()
+            from peclet.core.geom import leaf_spec
+            spec = leaf_spec(kind)
+            leaf = b.add_leaf(kind, nr[i, :spec.n_params])
+            phi = b.eval_root(leaf, local)
+            if kind == self.flip:
+                phi = -phi
+        else:
+            a = self._node(ni, nr, left, local)
+            c = self._node(ni, nr, right, local)
+            phi = {32: np.minimum(a, c), 33: np.maximum(a, c), 34: np.maximum(a, -c)}[kind]
+        return s * phi
+
+
+def cell_quadrature(builder, root, lo, hi, n, bias=0.0):
+    """Midpoint cell rule on an n^3 grid over [lo, hi] counting cells with ``phi < bias * h``:
+    (volume, com, principal moments ascending). ``bias = 0`` is merely first order; a
+    positive bias is the planted one-sided error."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    h = (hi - lo) / n
+    axes = [lo[k] + (np.arange(n) + 0.5) * h[k] for k in range(3)]
+    X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    w = (builder.eval_root(root, X) < bias * h.max()) * np.prod(h)
+    v = w.sum()
+    com = (w[:, None] * X).sum(axis=0) / v
+    d = X - com
+    r2 = (d * d).sum(axis=1)
+    inertia = (w[:, None, None] * (r2[:, None, None] * np.eye(3) - d[:, :, None] * d[:, None, :])
+               ).sum(axis=0)
+    return float(v), com, np.sort(np.linalg.eigvalsh(inertia))
+
+
+def biased_cell_quadrature(builder, root, lo, hi, n):
+    """:func:`cell_quadrature` with a half-cell outward bias (the planted quadrature bug)."""
+    return cell_quadrature(builder, root, lo, hi, n, bias=0.5)
+
+
+@njit(parallel=True, cache=True)
+def _racy_energy(pos, vel):
+    e = 0.0
+    for i in prange(len(pos)):
+        e += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) + 9.81 * pos[i, 1]
+    return e
+
+
+def thread_order_pour(state, steps: int = 4):
+    """A toy 'pour' whose update uses a prange float reduction: its bits depend on the
+    thread count (the planted determinism bug)."""
+    pos = np.array(state.positions, float)
+    vel = np.array(state.velocities, float)
+    for _ in range(steps):
+        e = _racy_energy(pos, vel)
+        vel[:, 1] -= 1e-3 * e
+        pos += 1e-3 * vel
+    return [pos, vel]
+
+
+@njit(cache=True)
+def _write_contacts(buf, rows):
+    # no capacity check on purpose: the caller is expected to have sized buf
+    for k in range(rows.shape[0]):
+        for j in range(rows.shape[1]):
+            buf[k, j] = rows[k, j]
+    return rows.shape[0]
+
+
+class FixedBufferEngine:
+    """Probe-vs-tree contact detection (brute force) writing into a contact buffer.
+
+    With ``grow=False`` the buffer keeps the capacity it had at construction (the page
+    engine's bug); with ``grow=True`` it is resized to the measured count first.
+    """
+
+    def __init__(self, ni, nr, root, probes, radius, positions, quaternions, grow,
+                 capacity=4):
+        self.b = SceneBuilder.decode(ni, nr)
+        self.root, self.probes = int(root), np.asarray(probes, float)
+        self.pos, self.quat = np.asarray(positions, float), np.asarray(quaternions, float)
+        self.grow = grow
+        self.buf = np.zeros((capacity, 9))
+
+    def set_contact_capacity(self, n):
+        if self.grow:
+            self.buf = np.zeros((max(int(n), 1), 9))
+
+    def detect_contacts(self):
+        rows = []
+        rots = [quat_to_matrix(q) for q in self.quat]
+        for ia in range(len(self.pos)):
+            world = self.probes @ rots[ia].T + self.pos[ia]
+            for ib in range(len(self.pos)):
+                if ia == ib:
+                    continue
+                local = (world - self.pos[ib]) @ rots[ib]
+                phi, g = self.b.eval_root_grad(self.root, local)
+                for k in np.nonzero(phi < 0.0)[0]:
+                    rows.append([ia, ib, *world[k], *(rots[ib] @ g[k]), -phi[k]])
+        rows = np.array(rows, float).reshape(-1, 9)
+        if self.grow and len(rows) > len(self.buf):
+            self.buf = np.zeros((len(rows), 9))  # count pass, then fill
+        m = _write_contacts(self.buf, rows)
+        out = self.buf[:m]
+        return {"body_a": out[:, 0], "body_b": out[:, 1], "point": out[:, 2:5],
+                "normal": out[:, 5:8], "depth": out[:, 8]}
+
+
+def fixed_buffer_engine(ni, nr, root, probes, radius, positions, quaternions):
+    """Factory for :func:`peclet_verify.properties.buffer_growth`: the never-grown buffer."""
+    return FixedBufferEngine(ni, nr, root, probes, radius, positions, quaternions, grow=False)
+
+
+def growing_buffer_engine(ni, nr, root, probes, radius, positions, quaternions):
+    """Factory: the correct twin (count, then size the buffer)."""
+    return FixedBufferEngine(ni, nr, root, probes, radius, positions, quaternions, grow=True)
+
+
+def sign_flip_torus_backend():
+    """Factory (for ``--peclet-backend``): the tree walk with every torus leaf's sign flipped."""
+    return TreeWalkBackend(flip="torus")
+
+
+def overclaiming_backend():
+    """Factory (for ``--peclet-backend``): :class:`OverclaimingBoundBackend`."""
+    return OverclaimingBoundBackend()

@@ -1,0 +1,620 @@
+"""Certification properties as plain functions returning :class:`PropertyResult`.
+
+Each property checks ONE input (a tree recipe, a state, a capacity sequence) and returns a
+result with its measured figure; :func:`search` runs a property over a Hypothesis strategy,
+keeps the worst figure and, on failure, the shrunk counterexample (a runnable snippet).
+Nothing here needs pytest.
+
+Conventions: phi < 0 inside (DESIGN.md §2); "slack" of Equation 1 is
+``phi(p) - (|p - c| - r)`` (must be >= 0 for a certified root); distances are in the tree's
+length unit; relative errors are dimensionless.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import subprocess
+import sys
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+from hypothesis import given
+from hypothesis import settings as hsettings
+
+from .backends import ReferenceBackend, backend_name, check_backend
+from .strategies import TreeRecipe, surface_points
+
+__all__ = ["PropertyResult", "search", "equation1", "sign_agreement", "distance_agreement",
+           "quadrature_convergence", "closed_form", "determinism", "buffer_growth",
+           "state_hash", "reference_measure", "reference_pour", "brute_force_contacts"]
+
+PASSED, FAILED, UNAVAILABLE, NOT_APPLICABLE = "passed", "failed", "unavailable", "n/a"
+
+
+@dataclass
+class PropertyResult:
+    """Outcome of a property. ``worst`` is the worst value of the figure ``worst_name`` seen
+    (its direction is ``worse``: "min" or "max"); ``examples`` the number of inputs checked."""
+
+    name: str
+    passed: bool
+    examples: int = 1
+    worst: float = float("nan")
+    worst_name: str = ""
+    counterexample: str = ""
+    status: str = PASSED
+    worse: str = "max"
+    details: dict = field(default_factory=dict)
+
+    @property
+    def verdict(self) -> str:
+        return self.status
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["worst"] = None if not math.isfinite(self.worst) else float(self.worst)
+        return d
+
+
+def _result(name, ok, figure, figure_name, worse, text="", **details):
+    return PropertyResult(name, bool(ok), 1, float(figure), figure_name,
+                          "" if ok else text, PASSED if ok else FAILED, worse, details)
+
+
+def unavailable(name, why) -> PropertyResult:
+    """A property that could not run (missing engine feature): neither passed nor failed."""
+    return PropertyResult(name, False, 0, float("nan"), "", why, UNAVAILABLE)
+
+
+def _encode(recipe: TreeRecipe):
+    b, root = recipe.build()
+    ni, nr, _, _ = b.encode()
+    return b, root, ni, nr
+
+
+def _rng(*keys):
+    h = hashlib.sha256(repr(keys).encode()).digest()
+    return np.random.default_rng(int.from_bytes(h[:8], "little"))
+
+
+# ---------------------------------------------------------------------------- search
+def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
+           describe: Callable = repr) -> PropertyResult:
+    """Run ``check(example) -> PropertyResult`` over ``strategy`` with Hypothesis.
+
+    The loaded Hypothesis profile applies unless ``settings`` is given. On failure Hypothesis
+    shrinks the input; the returned result carries the shrunk example (``describe(example)``)
+    and its own counterexample text. Inputs for which the property does not apply (status
+    "n/a") count as examples but never fail. An "unavailable" result stops the search.
+    """
+    seen = {"n": 0, "applicable": 0, "worst": None, "last_fail": None, "unavailable": None}
+
+    def run(example):
+        res = check(example)
+        if res.status == UNAVAILABLE:
+            seen["unavailable"] = res
+            return
+        seen["n"] += 1
+        if res.status == NOT_APPLICABLE:
+            return
+        seen["applicable"] += 1
+        w = seen["worst"]
+        if math.isfinite(res.worst) and (w is None or not math.isfinite(w.worst)
+                                         or (res.worst < w.worst if res.worse == "min"
+                                             else res.worst > w.worst)):
+            seen["worst"] = res
+        if not res.passed:
+            seen["last_fail"] = (example, res)
+            raise AssertionError(f"{res.name} failed:\n{res.counterexample}")
+
+    test = given(strategy)(run)
+    if settings is not None:
+        test = settings(test)
+    try:
+        test()
+        err = None
+    except AssertionError as exc:
+        err = exc
+    if seen["unavailable"] is not None:
+        return seen["unavailable"]
+    worst = seen["worst"]
+    base = PropertyResult(name or (worst.name if worst else "property"), err is None,
+                          seen["n"], worst.worst if worst else float("nan"),
+                          worst.worst_name if worst else "", "",
+                          PASSED if err is None else FAILED,
+                          worst.worse if worst else "max",
+                          {"applicable": seen["applicable"]})
+    if seen["applicable"] == 0 and err is None:
+        base.status = NOT_APPLICABLE
+    if err is not None:
+        example, res = seen["last_fail"] if seen["last_fail"] else (None, None)
+        if res is not None:
+            base.name = name or res.name
+            base.worst, base.worst_name, base.worse = res.worst, res.worst_name, res.worse
+            base.counterexample = (f"shrunk input:\n{describe(example)}\n\n{res.counterexample}")
+            base.details.update(res.details)
+        else:
+            base.counterexample = str(err)
+    return base
+
+
+# ---------------------------------------------------------------------------- Equation 1
+def _probe_outside(c, r, n, rng, max_factor=10.0):
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    # half the probes just outside the ball, half spread out to max_factor radii
+    u = np.concatenate([rng.uniform(0, 0.05, n // 2), rng.uniform(0, max_factor, n - n // 2)])
+    return c + d * (r * (1.0 + u) + 1e-9)[:, None]
+
+
+def equation1(recipe: TreeRecipe, backend=None, n: int = 256, claimed_by: str = "backend",
+              tol: float = 1e-9) -> PropertyResult:
+    """Equation 1, ``phi(p) >= |p - c| - r``, at ``n`` points outside the root's ball.
+
+    The ball and the ``certified`` claim come from ``backend.bound`` when the backend has one
+    (``claimed_by="backend"``), else from the reference rule (DESIGN.md §3). Applies only to
+    trees claimed certified (status "n/a" otherwise). Figure: minimum slack (>= -tol * (1 + r)
+    passes); the violation rate is in ``details``.
+    """
+    backend = check_backend(backend or ReferenceBackend())
+    b, root, ni, nr = _encode(recipe)
+    if claimed_by == "backend" and callable(getattr(backend, "bound", None)):
+        c, r, cert = backend.bound(ni, nr, root)
+    else:
+        c, r, cert = b.node_bound(root)
+    c = np.asarray(c, float)
+    name = "equation1"
+    if not cert or not math.isfinite(r):
+        return PropertyResult(name, True, 1, float("nan"), "min slack", "", NOT_APPLICABLE, "min")
+    p = _probe_outside(c, r, n, _rng("eq1", ni.tobytes(), nr.tobytes()))
+    phi = np.asarray(backend.evaluate(ni, nr, root, p), float)
+    slack = phi - (np.linalg.norm(p - c, axis=1) - r)
+    bad = slack < -tol * (1.0 + r)
+    k = int(np.argmin(slack))
+    text = (f"{backend_name(backend)} claims the root certified with ball c={c.tolist()}, "
+            f"r={r!r}, but at p={p[k].tolist()} phi={float(phi[k])!r} < |p-c|-r="
+            f"{float(phi[k] - slack[k])!r} (slack {slack[k]:.3e}); {int(bad.sum())}/{n} points violate")
+    return _result(name, not bad.any(), slack.min(), "min slack", "min", text,
+                   violation_rate=float(bad.mean()))
+
+
+# ---------------------------------------------------------------------------- sign agreement
+def _sign_points(b, root, n, rng):
+    c, r, _ = b.node_bound(root)
+    if not math.isfinite(r):
+        c, r = np.zeros(3), 2.0
+    raw = c + rng.uniform(-1.2, 1.2, (n, 3)) * r
+    near = surface_points(b, root, raw[: n // 2], iterations=3)
+    near += rng.normal(scale=1e-3 * r, size=near.shape)
+    return np.concatenate([near, raw[n // 2:]]), r
+
+
+def sign_agreement(recipe: TreeRecipe, other: Optional[TreeRecipe] = None, backend=None,
+                   n: int = 256, band: float = 1e-9) -> PropertyResult:
+    """Every way of evaluating the solid agrees on inside/outside at ``n`` probe points.
+
+    Compared with the reference ``eval_root`` of ``recipe``: ``eval_root_grad``, ``bake`` (one
+    lattice through the probes' first point per row is not possible, so a small lattice is
+    baked and compared with ``eval_root`` at the lattice nodes), the scene query
+    (``eval_scene``, pruned and brute, one instance at identity), ``decode(encode())``, the
+    ``backend`` (and its ``evaluate_grad``) and, when given, a second recipe ``other`` for the
+    same solid. Points with ``|phi| <= band * (1 + r)`` (on the surface) are skipped.
+    Figure: the fraction of points whose sign disagrees.
+    """
+    backend = check_backend(backend or ReferenceBackend())
+    b, root, ni, nr = _encode(recipe)
+    rng = _rng("sign", ni.tobytes(), nr.tobytes())
+    p, r = _sign_points(b, root, n, rng)
+    ref = b.eval_root(root, p)
+    views = {"eval_root_grad": b.eval_root_grad(root, p)[0],
+             "decode(encode())": SceneBuilder_decode(ni, nr).eval_root(root, p),
+             backend_name(backend): np.asarray(backend.evaluate(ni, nr, root, p), float)}
+    if callable(getattr(backend, "evaluate_grad", None)):
+        views[backend_name(backend) + ".evaluate_grad"] = np.asarray(
+            backend.evaluate_grad(ni, nr, root, p)[0], float)
+    if math.isfinite(r):
+        sb = SceneBuilder_decode(ni, nr)
+        sb.add_instance(root)
+        views["eval_scene(pruned)"] = sb.eval_scene(p, method="pruned")
+        views["eval_scene(brute)"] = sb.eval_scene(p, method="brute")
+    if other is not None:
+        ob, oroot = other.build()
+        views["other recipe"] = ob.eval_root(oroot, p)
+    keep = np.abs(ref) > band * (1.0 + (r if math.isfinite(r) else 1.0))
+    worst_rate, text = 0.0, ""
+    for label, phi in views.items():
+        dis = keep & (np.sign(phi) != np.sign(ref)) & (np.abs(phi) > band)
+        rate = float(dis.sum()) / max(int(keep.sum()), 1)
+        if rate > worst_rate:
+            k = int(np.argmax(dis))
+            worst_rate = rate
+            text = (f"{label} disagrees with eval_root on the sign at {int(dis.sum())}/"
+                    f"{int(keep.sum())} points, e.g. p={p[k].tolist()}: eval_root={float(ref[k])!r}, "
+                    f"{label}={float(phi[k])!r}")
+    bake_rate, bake_text = _bake_check(b, root, rng)
+    if bake_rate > worst_rate:
+        worst_rate, text = bake_rate, bake_text
+    return _result("sign_agreement", worst_rate == 0.0, worst_rate, "sign disagreement rate",
+                   "max", text)
+
+
+def SceneBuilder_decode(ni, nr):
+    from peclet.core.geom import SceneBuilder
+    return SceneBuilder.decode(ni, nr)
+
+
+def _bake_check(b, root, rng, dims=(5, 4, 3)):
+    c, r, _ = b.node_bound(root)
+    if not math.isfinite(r):
+        c, r = np.zeros(3), 2.0
+    origin = c - r * rng.uniform(0.5, 1.0, 3)
+    spacing = 2 * r * rng.uniform(0.2, 0.4, 3)
+    baked = b.bake(root, origin, spacing, dims)
+    i, j, k = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
+    idx = np.stack([i.ravel(order="F"), j.ravel(order="F"), k.ravel(order="F")], axis=1)
+    pts = origin + idx * spacing
+    ref = b.eval_root(root, pts)
+    dis = np.sign(baked) != np.sign(ref)
+    if not dis.any():
+        return 0.0, ""
+    m = int(np.argmax(dis))
+    return float(dis.mean()), (f"bake disagrees with eval_root at lattice node {idx[m].tolist()} "
+                               f"p={pts[m].tolist()}: bake={float(baked[m])!r} eval_root={float(ref[m])!r}")
+
+
+# ---------------------------------------------------------------------------- distance
+def distance_agreement(recipe: TreeRecipe, backend_a=None, backend_b=None, n: int = 256,
+                       rtol: float = 1e-9) -> PropertyResult:
+    """Two backends give the same phi within ``rtol * (1 + r)`` at ``n`` points in and around
+    the root ball (r its radius). Figure: the largest absolute difference."""
+    a = check_backend(backend_a or ReferenceBackend())
+    bb = check_backend(backend_b or ReferenceBackend())
+    b, root, ni, nr = _encode(recipe)
+    p, r = _sign_points(b, root, n, _rng("dist", ni.tobytes(), nr.tobytes()))
+    pa = np.asarray(a.evaluate(ni, nr, root, p), float)
+    pb = np.asarray(bb.evaluate(ni, nr, root, p), float)
+    diff = np.abs(pa - pb)
+    k = int(np.argmax(diff))
+    tol = rtol * (1.0 + (r if math.isfinite(r) else 1.0))
+    text = (f"{backend_name(a)} and {backend_name(bb)} differ by {diff[k]:.3e} (> {tol:.1e}) "
+            f"at p={p[k].tolist()}: {float(pa[k])!r} vs {float(pb[k])!r}; {int((diff > tol).sum())}/{n} "
+            "points differ")
+    return _result("distance_agreement", diff.max() <= tol, diff.max(), "max |phi_a - phi_b|",
+                   "max", text)
+
+
+# ---------------------------------------------------------------------------- quadrature
+def closed_form(recipe: TreeRecipe):
+    """(volume, centre of mass (3,), principal moments (3,) ascending or None) of a one-leaf
+    recipe at unit density, from closed forms; None if the leaf has none here."""
+    node = recipe.root
+    if not hasattr(node, "kind") or recipe.reframes:
+        return None
+    k, a = node.kind, node.params
+    pi = math.pi
+    if k == "sphere":
+        v = 4 / 3 * pi * a[0] ** 3
+        mom = [0.4 * v * a[0] ** 2] * 3
+    elif k == "box":
+        v = 8 * a[0] * a[1] * a[2]
+        x2, y2, z2 = a[0] ** 2, a[1] ** 2, a[2] ** 2
+        mom = [v / 3 * (y2 + z2), v / 3 * (x2 + z2), v / 3 * (x2 + y2)]
+    elif k == "ellipsoid":
+        v = 4 / 3 * pi * a[0] * a[1] * a[2]
+        x2, y2, z2 = a[0] ** 2, a[1] ** 2, a[2] ** 2
+        mom = [v / 5 * (y2 + z2), v / 5 * (x2 + z2), v / 5 * (x2 + y2)]
+    elif k == "hollow_cylinder":
+        ro, h, t = a
+        ri = ro - t
+        v = pi * (ro ** 2 - ri ** 2) * h
+        iy = 0.5 * v * (ro ** 2 + ri ** 2)
+        ix = v * ((ro ** 2 + ri ** 2) / 4 + h ** 2 / 12)
+        mom = [ix, iy, ix]
+    elif k == "torus":
+        R, r = a
+        v = 2 * pi ** 2 * R * r ** 2
+        iy = v * (R ** 2 + 0.75 * r ** 2)
+        ix = v * (0.5 * R ** 2 + 0.625 * r ** 2)
+        mom = [ix, iy, ix]
+    elif k == "capsule":
+        r, L = a
+        v = pi * r ** 2 * (4 / 3 * r + 2 * L)
+        mom = None
+    else:
+        return None
+    s = node.transform.scale
+    com = np.asarray(node.transform.translation, float)
+    principal = None if mom is None else np.sort(np.asarray(mom) * s ** 5)
+    return v * s ** 3, com, principal
+
+
+def reference_measure(builder, root, lo, hi, n):
+    """Mass properties by the reference engine's ``SceneBuilder.body_properties`` at
+    resolution ``n``: (volume, com, principal ascending). Raises AttributeError when the
+    engine has no quadrature yet."""
+    res = builder.body_properties(root, lo, hi, n=n)
+
+    def get(key, *alt):
+        for k in (key,) + alt:
+            if isinstance(res, dict) and k in res:
+                return res[k]
+            if hasattr(res, k):
+                return getattr(res, k)
+        raise AttributeError(f"body_properties result has no {key!r}")
+    return (float(get("volume")), np.asarray(get("com"), float),
+            np.sort(np.asarray(get("principal"), float)))
+
+
+def quadrature_convergence(recipe: TreeRecipe, measure: Optional[Callable] = None,
+                           ns=(8, 16, 32), rtol: float = 1e-4,
+                           min_order: float = 1.5) -> PropertyResult:
+    """Quadrature of a one-leaf solid against its closed form, and its observed order.
+
+    ``measure(builder, root, lo, hi, n) -> (volume, com, principal)`` (default: the reference
+    engine). Passes when the relative error (volume, com / size, principal moments) at the
+    finest ``n`` is <= ``rtol`` and the volume error falls at least like ``n**-min_order``
+    between the two finest resolutions (unless it is already at round-off, 1e-12).
+    Figure: the worst relative error at the finest n. Status "n/a" for leaves without a
+    closed form here.
+    """
+    name = "quadrature_convergence"
+    exact = closed_form(recipe)
+    if exact is None:
+        return PropertyResult(name, True, 1, float("nan"), "rel error", "", NOT_APPLICABLE)
+    measure = measure or reference_measure
+    b, root = recipe.build()
+    c, r, _ = b.node_bound(root)
+    lo, hi = c - 1.02 * r, c + 1.02 * r
+    v0, com0, mom0 = exact
+    size = v0 ** (1 / 3)
+    errs = []
+    try:
+        for n in ns:
+            v, com, mom = measure(b, root, lo, hi, n)
+            e = {"volume": abs(v - v0) / v0,
+                 "com": float(np.linalg.norm(np.asarray(com) - com0)) / size}
+            if mom0 is not None:
+                e["principal"] = float(np.max(np.abs(np.sort(mom) - mom0)) / np.max(mom0))
+            errs.append(e)
+    except (AttributeError, ImportError, NotImplementedError) as exc:
+        return unavailable(name, f"quadrature not available: {exc}")
+    fin = errs[-1]
+    worst_key = max(fin, key=fin.get)
+    ev = [e["volume"] for e in errs]
+    order = (math.log(ev[-2] / ev[-1]) / math.log(ns[-1] / ns[-2])
+             if ev[-1] > 1e-12 and ev[-2] > 0 else float("inf"))
+    ok = fin[worst_key] <= rtol and (order >= min_order or ev[-1] <= 1e-12)
+    text = (f"relative errors by n {list(ns)}: " +
+            "; ".join(f"n={n}: " + ", ".join(f"{k} {v:.2e}" for k, v in e.items())
+                      for n, e in zip(ns, errs)) +
+            f"; observed volume order {order:.2f} (need >= {min_order}, finest error <= {rtol})")
+    return _result(name, ok, fin[worst_key], f"rel error ({worst_key}, n={ns[-1]})", "max",
+                   text, observed_order=order)
+
+
+# ---------------------------------------------------------------------------- determinism
+def state_hash(arrays) -> str:
+    """sha256 of the bytes of a sequence (or dict, by sorted key) of arrays."""
+    if isinstance(arrays, dict):
+        arrays = [arrays[k] for k in sorted(arrays)]
+    h = hashlib.sha256()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str(a.dtype).encode() + str(a.shape).encode() + a.tobytes())
+    return h.hexdigest()
+
+
+def reference_pour(state, steps: int = 20):
+    """A short pour of spheres (radius 0.25) from ``state`` on a floor with peclet.dem;
+    returns the final (positions, quaternions, velocities, angular velocities)."""
+    from peclet.dem import Simulation
+    import numpy as _np
+    n = state.n
+    sim = Simulation(n)
+    lo = state.positions.min(axis=0) - 1.0
+    hi = state.positions.max(axis=0) + 1.0
+    sim.set_domain(tuple(lo), tuple(hi))
+    sim.set_gravity(0.0, -9.81, 0.0)
+    sim.set_material_params(0.3, 0.0, 0.5)
+    shape = sim.add_sphere_shape(0.25)
+    sim.set_positions(state.positions)
+    sim.set_shape_ids(_np.full(n, shape, _np.int32))
+    sim.set_quaternions(state.quaternions)
+    sim.set_velocities(state.velocities)
+    sim.set_angular_velocities(state.angular_velocities)
+    sim.set_inv_mass(_np.ones(n))
+    sim.set_inv_inertia(_np.full((n, 3), 1.0 / (0.4 * 0.25 ** 2)))
+    for _ in range(steps):
+        sim.step(1e-3)
+    return [_np.asarray(sim.get_positions()), _np.asarray(sim.get_quaternions()),
+            _np.asarray(sim.get_velocities()), _np.asarray(sim.get_angular_velocities())]
+
+
+def determinism(state, pour: Optional[Callable] = None, threads=(1, 2)) -> PropertyResult:
+    """``pour(state)`` gives bitwise the same state twice at one thread and at every thread
+    count in ``threads`` (numba.set_num_threads; counts above the pool size are dropped).
+    Figure: the number of distinct state hashes (1 passes)."""
+    import numba
+    name = "determinism"
+    pour = pour or reference_pour
+    cap = numba.config.NUMBA_NUM_THREADS
+    counts = [t for t in threads if 1 <= t <= cap]
+    before = numba.get_num_threads()
+    hashes = {}
+    try:
+        numba.set_num_threads(counts[0])
+        runs = [(f"{counts[0]} thread(s), run {i + 1}", counts[0]) for i in range(2)]
+        runs += [(f"{t} thread(s)", t) for t in counts[1:]]
+        for label, t in runs:
+            numba.set_num_threads(t)
+            hashes[label] = state_hash(pour(state))
+    except (ImportError, AttributeError, NotImplementedError) as exc:
+        return unavailable(name, f"pour not available: {exc}")
+    finally:
+        numba.set_num_threads(before)
+    distinct = len(set(hashes.values()))
+    text = "state hashes differ: " + "; ".join(f"{k}: {v[:16]}" for k, v in hashes.items())
+    return _result(name, distinct == 1, distinct, "distinct state hashes", "max", text,
+                   hashes=hashes, thread_counts=counts)
+
+
+# ---------------------------------------------------------------------------- buffer growth
+def brute_force_contacts(builder, root, probes, positions, quaternions):
+    """Reference contacts of identical bodies (tree ``root`` of ``builder`` in the body frame,
+    shell ``probes`` (m, 3) on its surface, poses ``positions`` (n, 3) and ``quaternions``
+    (n, 4) as (x, y, z, w)): every ordered pair (a, b), a != b, with a probe of a strictly
+    inside b (phi_b < 0 by ``eval_root`` in b's frame). Returns sorted (a, b, probe index)."""
+    from peclet.core.geom import quat_to_matrix
+    rots = [quat_to_matrix(q) for q in quaternions]
+    out = []
+    for ia in range(len(positions)):
+        world = probes @ rots[ia].T + positions[ia]
+        for ib in range(len(positions)):
+            if ia != ib:
+                local = (world - positions[ib]) @ rots[ib]
+                out.extend((ia, ib, int(k)) for k in
+                           np.nonzero(builder.eval_root(root, local) < 0.0)[0])
+    return sorted(out)
+
+
+_BUFFER_CHILD = r"""
+import json, sys
+import numpy as np
+from peclet_verify.properties import _buffer_growth_inprocess
+args = json.loads(sys.stdin.read())
+print(json.dumps(_buffer_growth_inprocess(**args)))
+"""
+
+
+def buffer_growth(recipe: TreeRecipe, capacities, state, engine: str = "reference",
+                  n_probes: int = 64, timeout: float = 600.0) -> PropertyResult:
+    """Contacts found under every contact capacity in ``capacities`` (applied in order with
+    ``set_contact_capacity``) equal the contacts at ample capacity, and the touching pairs
+    equal the brute-force reference (:func:`brute_force_contacts`); nothing is written out of
+    bounds. Runs in a subprocess with ``NUMBA_BOUNDSCHECK=1`` (read at import), so an
+    out-of-bounds write is an IndexError there rather than silent corruption.
+
+    ``engine`` is ``"reference"`` (peclet.dem.Simulation) or ``"module:factory"`` with
+    ``factory(node_ints, node_reals, root, probes, radius, state) -> engine`` exposing
+    ``set_contact_capacity(n)`` and ``detect_contacts()``. Figure: number of contact sets
+    that differ from the reference.
+    """
+    b, root, ni, nr = _encode(recipe)
+    c, r, _ = b.node_bound(root)
+    rng = _rng("probes", ni.tobytes(), nr.tobytes())
+    probes = surface_points(b, root, c + rng.uniform(-r, r, (n_probes, 3)), iterations=12)
+    args = dict(node_ints=ni.tolist(), node_reals=nr.tolist(), root=int(root),
+                probes=probes.tolist(), radius=float(np.max(np.linalg.norm(probes, axis=1))),
+                positions=np.asarray(state.positions).tolist(),
+                quaternions=np.asarray(state.quaternions).tolist(),
+                capacities=[int(x) for x in capacities], engine=engine)
+    env = dict(os.environ, NUMBA_BOUNDSCHECK="1")
+    proc = subprocess.run([sys.executable, "-c", _BUFFER_CHILD], input=json.dumps(args),
+                          capture_output=True, text=True, env=env, timeout=timeout)
+    name = "buffer_growth"
+    if proc.returncode != 0 or not proc.stdout.strip():
+        return _result(name, False, float("inf"), "differing contact sets", "max",
+                       f"child crashed (exit {proc.returncode}):\n{proc.stderr[-2000:]}")
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    if out.get("unavailable"):
+        return unavailable(name, out["unavailable"])
+    return _result(name, out["ok"], out["differing"], "differing contact sets", "max",
+                   out["text"], reference_pairs=out["reference_contacts"],
+                   engine_contacts=out.get("engine_contacts"))
+
+
+class _DemEngine:
+    """peclet.dem.Simulation set up with one scene shape at the given state."""
+
+    def __init__(self, ni, nr, root, probes, radius, positions, quaternions):
+        from peclet.dem import Simulation
+        n = len(positions)
+        self.sim = Simulation(n)
+        lo = np.min(positions, axis=0) - 4 * radius
+        hi = np.max(positions, axis=0) + 4 * radius
+        self.sim.set_domain(tuple(lo), tuple(hi))
+        shape = self.sim.add_scene_shape(ni, nr, root, probes, radius)
+        self.sim.set_positions(positions)
+        self.sim.set_shape_ids(np.full(n, shape, np.int32))
+        self.sim.set_quaternions(quaternions)
+
+    def set_contact_capacity(self, n):
+        self.sim.set_contact_capacity(n)
+
+    def detect_contacts(self):
+        return self.sim.detect_contacts()
+
+
+def _contact_rows(contacts):
+    """Normalise an engine's contacts to sorted rows (a, b, point[3], normal[3], depth
+    [, feature])."""
+    def col(key):
+        v = contacts[key] if isinstance(contacts, dict) else getattr(contacts, key)
+        return np.asarray(v, dtype=np.float64)
+    a, b = col("body_a"), col("body_b")
+    cols = [a, b, col("point").reshape(len(a), 3), col("normal").reshape(len(a), 3),
+            col("depth")]
+    has_feature = "feature" in contacts if isinstance(contacts, dict) else \
+        hasattr(contacts, "feature")
+    if has_feature:
+        cols.append(col("feature"))
+    rows = np.column_stack(cols) if len(a) else np.zeros((0, 9 + has_feature))
+    order = np.lexsort(rows.T[::-1]) if len(rows) else np.zeros(0, int)
+    return rows[order]
+
+
+def _buffer_growth_inprocess(node_ints, node_reals, root, probes, radius, positions,
+                             quaternions, capacities, engine):
+    ni = np.asarray(node_ints, np.int32)
+    nr = np.asarray(node_reals, np.float64)
+    probes = np.asarray(probes)
+    pos = np.asarray(positions, float)
+    quat = np.asarray(quaternions, float)
+    try:
+        if engine == "reference":
+            make = _DemEngine
+        else:
+            mod, attr = engine.split(":")
+            make = getattr(__import__(mod, fromlist=[attr]), attr)
+        eng = make(ni, nr, root, probes, radius, pos, quat)
+        eng.set_contact_capacity
+        eng.detect_contacts
+    except (ImportError, AttributeError, NotImplementedError) as exc:
+        return {"unavailable": f"engine {engine!r} not available: {type(exc).__name__}: {exc}"}
+    from peclet.core.geom import SceneBuilder
+    ref = {tuple(sorted(c[:2])) for c in
+           brute_force_contacts(SceneBuilder.decode(ni, nr), root, probes, pos, quat)}
+    def detect(cap):
+        eng.set_contact_capacity(int(cap))
+        return _contact_rows(eng.detect_contacts())
+
+    ample_cap = max(4 * len(probes) * len(pos) * max(len(pos) - 1, 1), 16)
+    differing, text = 0, ""
+    try:
+        ample = detect(ample_cap)
+    except IndexError as exc:
+        return {"ok": False, "differing": 1, "reference_contacts": len(ref),
+                "text": f"out-of-bounds write at ample capacity {ample_cap} "
+                        f"(NUMBA_BOUNDSCHECK=1): {exc}"}
+    # speculative contacts (depth <= 0: still apart) are not penetrations
+    got_pairs = {tuple(sorted((int(x), int(y)))) for x, y in ample[ample[:, 8] > 0, :2]}
+    if got_pairs != ref:
+        differing += 1
+        text += (f"at ample capacity the touching pairs {sorted(got_pairs)} differ from the "
+                 f"brute-force reference {sorted(ref)}\n")
+    for cap in capacities:
+        try:
+            rows = detect(cap)
+        except IndexError as exc:
+            return {"ok": False, "differing": differing + 1, "reference_contacts": len(ref),
+                    "text": text + f"out-of-bounds write at capacity {cap} (NUMBA_BOUNDSCHECK=1)"
+                                   f": {exc}"}
+        if rows.shape != ample.shape or not np.array_equal(rows, ample):
+            differing += 1
+            text += (f"capacity {cap}: {len(rows)} contacts, at ample capacity {len(ample)}"
+                     " (contacts lost or changed)\n")
+    return {"ok": differing == 0, "differing": differing, "text": text,
+            "reference_contacts": len(ref), "engine_contacts": int(len(ample))}

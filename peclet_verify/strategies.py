@@ -1,0 +1,595 @@
+"""Hypothesis strategies for CSG trees, probe points, rigid-body states and buffer capacities.
+
+Every tree strategy produces a :class:`TreeRecipe`: an immutable record of the public
+``SceneBuilder`` calls that build it. A recipe is valid by construction (parameters are drawn
+inside each leaf's accepted range, quaternions are unit, scales positive), so no example is ever
+rejected; it shrinks towards a single leaf with an identity transform; and ``repr(recipe)`` /
+``recipe.snippet()`` is a runnable Python snippet that rebuilds the failing tree.
+
+Conventions follow DESIGN.md §2: phi < 0 inside, quaternions (x, y, z, w) active, a node's
+value in its parent frame is ``s * f(R^T (p - t) / s)``. Lengths are in the builder's unit;
+the default parameter ranges give solids about one unit across.
+
+>>> from hypothesis import given
+>>> from peclet_verify import strategies as pst
+>>> @given(pst.trees(max_leaves=3))
+... def test_builds(recipe):
+...     b, root = recipe.build()
+...     assert b.num_nodes() == recipe.num_nodes
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from peclet.core.geom import LEAF_NAMES, LEAVES_BY_NAME, SceneBuilder
+
+__all__ = ["Transform", "LeafCall", "OpCall", "TreeRecipe", "RigidState", "BOUNDED_KINDS",
+           "EXACT_KINDS", "LIPSCHITZ_KINDS", "OPERATORS", "leaf_params", "leaves", "transforms",
+           "trees", "points_in_box", "points_outside_ball", "points_near_surface", "rigid_states",
+           "capacity_sequences", "unit_quaternions", "same_solid_pairs", "surface_points"]
+
+#: Leaves with a finite enclosing ball (everything but the half-space).
+BOUNDED_KINDS = tuple(k for k in LEAF_NAMES if k != "half_space")
+#: Leaves whose value is the exact signed distance (their ball is certified).
+EXACT_KINDS = tuple(k for k in BOUNDED_KINDS if LEAVES_BY_NAME[k].exact)
+#: Leaves that are 1-Lipschitz (may sit on the right of a certified intersection/difference).
+LIPSCHITZ_KINDS = tuple(k for k in BOUNDED_KINDS if LEAVES_BY_NAME[k].lipschitz)
+OPERATORS = ("union", "intersection", "difference")
+
+
+# ---------------------------------------------------------------------------- recipe records
+@dataclass(frozen=True)
+class Transform:
+    """A conformal transform: translation (3,), unit quaternion (x, y, z, w), scale > 0."""
+
+    translation: tuple = (0.0, 0.0, 0.0)
+    rotation: tuple = (0.0, 0.0, 0.0, 1.0)
+    scale: float = 1.0
+
+    def kwargs_source(self) -> str:
+        parts = []
+        if any(v != 0.0 for v in self.translation):
+            parts.append(f"translation={list(self.translation)!r}")
+        if tuple(self.rotation) != (0.0, 0.0, 0.0, 1.0):
+            parts.append(f"rotation={list(self.rotation)!r}")
+        if self.scale != 1.0:
+            parts.append(f"scale={self.scale!r}")
+        return "".join(", " + p for p in parts)
+
+    def kwargs(self) -> dict:
+        return dict(translation=list(self.translation), rotation=list(self.rotation),
+                    scale=self.scale)
+
+    def inverse(self) -> "Transform":
+        """The transform T^-1 with T^-1(T(p)) = p."""
+        x, y, z, w = self.rotation
+        qi = (-x, -y, -z, w)
+        R = _quat_matrix(qi)
+        t = -(R @ np.asarray(self.translation)) / self.scale
+        return Transform(tuple(float(v) for v in t), tuple(float(v) for v in qi),
+                         1.0 / self.scale)
+
+
+IDENTITY = Transform()
+
+
+@dataclass(frozen=True)
+class LeafCall:
+    """``add_leaf(kind, params, **transform)``."""
+
+    kind: str
+    params: tuple
+    transform: Transform = IDENTITY
+
+
+@dataclass(frozen=True)
+class OpCall:
+    """``add_union / add_intersection / add_difference(left, right, **transform)``."""
+
+    op: str
+    left: object
+    right: object
+    transform: Transform = IDENTITY
+
+
+@dataclass(frozen=True)
+class TreeRecipe:
+    """A CSG tree as the list of public ``SceneBuilder`` calls that build it.
+
+    ``root`` is a nested :class:`LeafCall` / :class:`OpCall`; ``reframe`` optional transforms
+    applied with ``add_reframed`` to the finished root, innermost first.
+    """
+
+    root: object
+    reframes: tuple = field(default=())
+
+    # -- structure
+    @property
+    def num_leaves(self) -> int:
+        return sum(1 for n in _postorder(self.root) if isinstance(n, LeafCall))
+
+    @property
+    def depth(self) -> int:
+        return _depth(self.root)
+
+    @property
+    def num_nodes(self) -> int:
+        return sum(1 for _ in _postorder(self.root)) + len(self.reframes)
+
+    @property
+    def kinds(self) -> tuple:
+        return tuple(n.kind for n in _postorder(self.root) if isinstance(n, LeafCall))
+
+    def reframed(self, transform: Transform) -> "TreeRecipe":
+        """The same tree moved by ``transform`` through ``add_reframed`` (exact, no resample)."""
+        return TreeRecipe(self.root, self.reframes + (transform,))
+
+    # -- building
+    def calls(self):
+        """[(variable, method, args source, kwargs source)] in build order."""
+        out = []
+        names = {}
+        for node in _postorder(self.root):
+            var = f"n{len(out)}"
+            if isinstance(node, LeafCall):
+                args = f"{node.kind!r}, {list(node.params)!r}"
+                out.append((var, "add_leaf", args, node.transform.kwargs_source()))
+            else:
+                args = f"{names[id(node.left)]}, {names[id(node.right)]}"
+                out.append((var, "add_" + node.op, args, node.transform.kwargs_source()))
+            names[id(node)] = var
+        for tr in self.reframes:
+            out.append((f"n{len(out)}", "add_reframed", out[-1][0], tr.kwargs_source()))
+        return out
+
+    def build(self, builder: Optional[SceneBuilder] = None):
+        """Replay the calls on ``builder`` (a new one by default); returns (builder, root)."""
+        b = SceneBuilder() if builder is None else builder
+        idx = {}
+        last = None
+        for node in _postorder(self.root):
+            kw = node.transform.kwargs()
+            if isinstance(node, LeafCall):
+                last = b.add_leaf(node.kind, list(node.params), **kw)
+            else:
+                last = getattr(b, "add_" + node.op)(idx[id(node.left)], idx[id(node.right)], **kw)
+            idx[id(node)] = last
+        for tr in self.reframes:
+            last = b.add_reframed(last, **tr.kwargs())
+        return b, last
+
+    def snippet(self) -> str:
+        """Runnable Python that rebuilds this tree as ``b`` with its root in ``root``."""
+        lines = ["from peclet.core.geom import SceneBuilder", "b = SceneBuilder()"]
+        calls = self.calls()
+        for var, method, args, kwargs in calls:
+            lines.append(f"{var} = b.{method}({args}{kwargs})")
+        lines.append(f"root = {calls[-1][0]}")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return self.snippet()
+
+
+def _postorder(node):
+    """Children before parents, left before right; shared subtrees appear once per use."""
+    stack = [(node, False)]
+    while stack:
+        n, expanded = stack.pop()
+        if isinstance(n, LeafCall) or expanded:
+            yield n
+        else:
+            stack.append((n, True))
+            stack.append((n.right, False))
+            stack.append((n.left, False))
+
+
+def _depth(node) -> int:
+    if isinstance(node, LeafCall):
+        return 0
+    return 1 + max(_depth(node.left), _depth(node.right))
+
+
+def _quat_matrix(q):
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+# ---------------------------------------------------------------------------- validation
+def _check_kinds(kinds, name="kinds", allowed=LEAF_NAMES):
+    if isinstance(kinds, str):
+        kinds = (kinds,)
+    kinds = tuple(kinds)
+    if not kinds:
+        raise ValueError(f"{name} must name at least one leaf kind from {list(allowed)}")
+    bad = [k for k in kinds if k not in allowed]
+    if bad:
+        raise ValueError(f"{name} must be leaf kinds from {list(allowed)}, got {bad}")
+    return kinds
+
+
+def _check_range(value, name, lo_min=0.0):
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a pair (lo, hi), got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo_min < lo <= hi):
+        raise ValueError(f"{name} must satisfy {lo_min} < lo <= hi (finite), got {value!r}")
+    return lo, hi
+
+
+def _check_int(value, name, lo, hi=None):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an int, got {value!r}")
+    if value < lo or (hi is not None and value > hi):
+        rng = f"[{lo}, {hi}]" if hi is not None else f">= {lo}"
+        raise ValueError(f"{name} must be in {rng}, got {value}")
+    return int(value)
+
+
+# ---------------------------------------------------------------------------- leaves
+def _size(lo=0.1, hi=1.0):
+    return st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+
+
+def _frac(lo, hi):
+    return st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+
+
+def leaf_params(kind: str) -> st.SearchStrategy:
+    """Parameter tuples for leaf ``kind`` inside its accepted range (about unit size).
+
+    Ranges: radii/extents in [0.1, 1]; hollow_cylinder thickness a fraction 0.05..0.95 of
+    rOuter; torus tube a fraction 0.05..0.9 of R; superquadric exponent in [0.1, 1];
+    half_space a unit normal and offset in [-1, 1].
+    """
+    kind = _check_kinds(kind, "kind")[0]
+    if kind == "sphere":
+        return st.tuples(_size(0.2, 1.0))
+    if kind in ("box", "ellipsoid"):
+        return st.tuples(_size(), _size(), _size())
+    if kind == "hollow_cylinder":
+        return st.builds(lambda ro, h, f: (ro, h, ro * f), _size(0.2, 1.0), _size(0.1, 1.5),
+                         _frac(0.05, 0.95))
+    if kind == "hollow_cylinder_shell":
+        return st.builds(lambda ro, f, h: (ro, ro * f, h), _size(0.2, 1.0), _frac(0.0, 0.95),
+                         _size(0.1, 1.5))
+    if kind == "capsule":
+        return st.tuples(_size(0.1, 0.8), _frac(0.0, 1.0))
+    if kind == "torus":
+        return st.builds(lambda R, f: (R, R * f), _size(0.3, 1.0), _frac(0.05, 0.9))
+    if kind == "cone":
+        return st.builds(lambda rb, rt, h, flip: (rt, rb, h) if flip else (rb, rt, h),
+                         _size(0.05, 1.0), _frac(0.0, 1.0), _size(0.1, 1.0), st.booleans())
+    if kind == "superquadric":
+        return st.tuples(_size(), _size(), _size(), _frac(0.1, 1.0))
+    # half_space
+    return st.builds(lambda n, o: (*n, o), _unit_vectors(), _frac(-1.0, 1.0))
+
+
+def leaves(kinds=BOUNDED_KINDS, certified_only: bool = False, transforms: bool = True,
+           scale=(0.5, 2.0)) -> st.SearchStrategy:
+    """One-leaf :class:`TreeRecipe` s of the given ``kinds``.
+
+    ``certified_only`` keeps the exact (certified) kinds among ``kinds``; it is an error if none
+    remain. ``transforms`` False gives identity transforms.
+    """
+    return _leaf_calls(kinds, certified_only, transforms, scale).map(TreeRecipe)
+
+
+def _leaf_calls(kinds, certified_only, with_transforms, scale):
+    kinds = _check_kinds(kinds)
+    if certified_only:
+        kept = tuple(k for k in kinds if LEAVES_BY_NAME[k].exact)
+        if not kept:
+            raise ValueError(f"certified_only=True but none of kinds {list(kinds)} is exact; "
+                             f"exact kinds are {list(EXACT_KINDS)}")
+        kinds = kept
+    tr = _transform_strategy(scale=scale) if with_transforms else st.just(IDENTITY)
+    per_kind = [st.builds(LeafCall, st.just(k), leaf_params(k), tr) for k in kinds]
+    return st.one_of(per_kind)
+
+
+# ---------------------------------------------------------------------------- transforms
+def _unit_vectors():
+    def norm(v):
+        n = math.sqrt(sum(c * c for c in v))
+        return (1.0, 0.0, 0.0) if n < 1e-3 else tuple(c / n for c in v)
+    return st.tuples(_frac(-1, 1), _frac(-1, 1), _frac(-1, 1)).map(norm)
+
+
+def unit_quaternions(max_angle: float = math.pi) -> st.SearchStrategy:
+    """Unit quaternions (x, y, z, w) as axis-angle, shrinking to the identity."""
+    if not (0.0 <= max_angle <= math.pi):
+        raise ValueError(f"max_angle must be in [0, pi], got {max_angle!r}")
+
+    def quat(axis, angle):
+        s = math.sin(0.5 * angle)
+        return (axis[0] * s, axis[1] * s, axis[2] * s, math.cos(0.5 * angle))
+    return st.builds(quat, _unit_vectors(), _frac(0.0, max_angle))
+
+
+def transforms(translation: float = 1.0, rotation: bool = True, scale=(0.5, 2.0),
+               identity: bool = True) -> st.SearchStrategy:
+    """:class:`Transform` s: translation components in [-translation, translation], a unit
+    quaternion (any rotation if ``rotation``), an isotropic scale in ``scale=(lo, hi)``.
+
+    With ``identity`` (default) the identity is one of the choices and what examples shrink to.
+    """
+    translation = float(translation)
+    if not (math.isfinite(translation) and translation >= 0):
+        raise ValueError(f"translation must be a finite number >= 0, got {translation!r}")
+    lo, hi = _check_range(scale, "scale")
+    comp = _frac(-translation, translation) if translation > 0 else st.just(0.0)
+    rot = unit_quaternions() if rotation else st.just((0.0, 0.0, 0.0, 1.0))
+    sc = _frac(lo, hi) if lo < hi else st.just(lo)
+    general = st.builds(Transform, st.tuples(comp, comp, comp), rot, sc)
+    return st.one_of(st.just(IDENTITY), general) if identity else general
+
+
+_transform_strategy = transforms
+
+
+# ---------------------------------------------------------------------------- trees
+def trees(kinds=None, max_leaves: int = 8, max_depth: Optional[int] = None,
+          certified_only: bool = False, transforms: bool = True, scale=(0.5, 2.0),
+          operators=OPERATORS) -> st.SearchStrategy:
+    """CSG trees as :class:`TreeRecipe`, built with ``st.recursive`` (valid by construction).
+
+    Parameters
+    ----------
+    kinds : leaf kinds allowed (default: every bounded kind, i.e. all but ``half_space``).
+    max_leaves : at most this many leaves (1..64).
+    max_depth : operators deeper than this are cut to their leftmost leaf (default: no cut).
+    certified_only : only trees the certificate rule certifies: exact leaves wherever a leaf
+        carries the ball (unions, left operands), 1-Lipschitz leaves on the right of an
+        intersection/difference.
+    transforms : random transforms on every node (else identities).
+    scale : range of the isotropic scale of each transform.
+    operators : subset of ("union", "intersection", "difference").
+    """
+    kinds = BOUNDED_KINDS if kinds is None else _check_kinds(kinds)
+    max_leaves = _check_int(max_leaves, "max_leaves", 1, 64)
+    if max_depth is not None:
+        max_depth = _check_int(max_depth, "max_depth", 0, 63)
+    _check_range(scale, "scale")
+    operators = tuple(operators)
+    bad = [o for o in operators if o not in OPERATORS]
+    if not operators or bad:
+        raise ValueError(f"operators must be a non-empty subset of {list(OPERATORS)}, got "
+                         f"{list(operators)}")
+    tr = _transform_strategy(scale=scale) if transforms else st.just(IDENTITY)
+    if certified_only:
+        ball_kinds = tuple(k for k in kinds if LEAVES_BY_NAME[k].exact)
+        lip_kinds = tuple(k for k in kinds if LEAVES_BY_NAME[k].lipschitz)
+        if not ball_kinds:
+            raise ValueError(f"certified_only=True but none of kinds {list(kinds)} is exact; "
+                             f"exact kinds are {list(EXACT_KINDS)}")
+        certified = _tree_nodes(_leaf_calls(ball_kinds, False, transforms, scale), max_leaves,
+                                operators, tr, max_depth,
+                                right=_tree_nodes(_leaf_calls(lip_kinds, False, transforms,
+                                                              scale), max_leaves, operators,
+                                                  tr, max_depth))
+        return certified.map(TreeRecipe)
+    base = _leaf_calls(kinds, False, transforms, scale)
+    return _tree_nodes(base, max_leaves, operators, tr, max_depth).map(TreeRecipe)
+
+
+def _tree_nodes(base, max_leaves, operators, tr, max_depth, right=None):
+    """Nested LeafCall/OpCall nodes. With ``right`` (a strategy of Lipschitz subtrees),
+    intersections/differences take their right operand from it, unions from ``children``."""
+    if max_leaves == 1:
+        return base
+
+    def extend(children):
+        rhs = children if right is None else right
+        opts = []
+        for op in operators:
+            r = children if op == "union" else rhs
+            opts.append(st.builds(OpCall, st.just(op), children, r, tr))
+        return st.one_of(opts)
+
+    nodes = st.recursive(base, extend, max_leaves=max_leaves)
+    if max_depth is not None:
+        nodes = nodes.map(lambda n: _cut(n, max_depth))
+    return nodes
+
+
+def _cut(node, depth):
+    """Replace subtrees deeper than ``depth`` by their leftmost leaf (keeps validity)."""
+    if isinstance(node, LeafCall):
+        return node
+    if depth == 0:
+        while not isinstance(node, LeafCall):
+            node = node.left
+        return node
+    return OpCall(node.op, _cut(node.left, depth - 1), _cut(node.right, depth - 1),
+                  node.transform)
+
+
+def same_solid_pairs(**tree_kwargs) -> st.SearchStrategy:
+    """Pairs (recipe, other) of different recipes describing the same solid (same sign of
+    phi everywhere off the surface):
+
+    - a tree and the tree reframed by T then by T^-1 (``add_reframed`` twice);
+    - ``difference(a, half_space(n, o))`` and ``intersection(a, half_space(-n, -o))``
+      (cutting by a half-space is intersecting with its complement).
+    ``tree_kwargs`` go to :func:`trees`.
+    """
+    base = trees(**tree_kwargs)
+    tr = _transform_strategy(identity=False)
+    reframed = st.builds(lambda r, t: (r, r.reframed(t).reframed(t.inverse())), base, tr)
+
+    def cut(r, hs):
+        plane = LeafCall("half_space", hs)
+        flipped = LeafCall("half_space", (-hs[0], -hs[1], -hs[2], -hs[3]))
+        return (TreeRecipe(OpCall("difference", r.root, plane)),
+                TreeRecipe(OpCall("intersection", r.root, flipped)))
+    cuts = st.builds(cut, base, leaf_params("half_space"))
+    return st.one_of(reframed, cuts)
+
+
+# ---------------------------------------------------------------------------- points
+def _ball_of(source):
+    if isinstance(source, TreeRecipe):
+        b, root = source.build()
+        c, r, _ = b.node_bound(root)
+        return np.asarray(c, float), float(r)
+    try:
+        c, r = source
+        c = np.asarray(c, dtype=np.float64).reshape(3)
+        r = float(r)
+    except (TypeError, ValueError):
+        raise ValueError(f"expected a TreeRecipe or (centre (3,), radius), got {source!r}") \
+            from None
+    if not (np.all(np.isfinite(c)) and math.isfinite(r) and r >= 0):
+        raise ValueError(f"ball must have a finite centre and a finite radius >= 0, got "
+                         f"({c.tolist()}, {r})")
+    return c, r
+
+
+def points_in_box(lo, hi, n: int = 64) -> st.SearchStrategy:
+    """(n, 3) float64 arrays uniform-ish in the box [lo, hi] (shrinking towards ``lo``)."""
+    lo = np.asarray(lo, dtype=np.float64).reshape(3)
+    hi = np.asarray(hi, dtype=np.float64).reshape(3)
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo <= hi)):
+        raise ValueError(f"box must satisfy lo <= hi componentwise (finite), got {lo}, {hi}")
+    n = _check_int(n, "n", 1)
+    unit = hnp.arrays(np.float64, (n, 3), elements=st.floats(0.0, 1.0))
+    return unit.map(lambda u: lo + u * (hi - lo))
+
+
+def points_outside_ball(source, n: int = 64, max_factor: float = 10.0) -> st.SearchStrategy:
+    """(n, 3) points strictly outside a ball, at distances up to ``max_factor`` radii from its
+    surface. ``source`` is a :class:`TreeRecipe` (its root's ball) or ``(centre, radius)``."""
+    c, r = _ball_of(source)
+    n = _check_int(n, "n", 1)
+    if not (math.isfinite(max_factor) and max_factor > 0):
+        raise ValueError(f"max_factor must be finite and > 0, got {max_factor!r}")
+    span = max(r, 1e-3) * max_factor
+
+    def place(d, u):
+        nrm = np.linalg.norm(d, axis=1)
+        d = np.where(nrm[:, None] < 1e-6, np.array([1.0, 0.0, 0.0]), d)
+        d = d / np.linalg.norm(d, axis=1)[:, None]
+        dist = r * (1 + 1e-12) + 1e-12 + u * span
+        return c + d * dist[:, None]
+    dirs = hnp.arrays(np.float64, (n, 3), elements=st.floats(-1.0, 1.0))
+    dist = hnp.arrays(np.float64, (n,), elements=st.floats(0.0, 1.0))
+    return st.builds(place, dirs, dist)
+
+
+def surface_points(builder, root, raw, iterations: int = 8):
+    """Project the (N, 3) points ``raw`` towards the zero set of ``root`` with Newton steps
+    ``p <- p - phi grad / |grad|^2`` (exact for exact distances, a few steps otherwise)."""
+    p = np.array(raw, dtype=np.float64)
+    for _ in range(iterations):
+        phi, g = builder.eval_root_grad(root, p)
+        g2 = np.maximum(np.einsum("ij,ij->i", g, g), 1e-12)
+        p = p - (phi / g2)[:, None] * g
+    return p
+
+
+def points_near_surface(recipe: TreeRecipe, n: int = 64, band: float = 0.05) -> st.SearchStrategy:
+    """(n, 3) points within about ``band`` of the surface of ``recipe``'s solid.
+
+    Raw points in the root ball are projected onto the zero set (:func:`surface_points`) and
+    offset along the normal by a drawn amount in [-band, band].
+    """
+    if not isinstance(recipe, TreeRecipe):
+        raise ValueError(f"recipe must be a TreeRecipe, got {type(recipe).__name__}")
+    n = _check_int(n, "n", 1)
+    if not (math.isfinite(band) and band >= 0):
+        raise ValueError(f"band must be finite and >= 0, got {band!r}")
+    b, root = recipe.build()
+    c, r, _ = b.node_bound(root)
+    if not math.isfinite(r):
+        raise ValueError("points_near_surface needs a bounded root (no half-space on the left)")
+
+    def place(u, off):
+        p = surface_points(b, root, c + (2 * u - 1) * r)
+        _, g = b.eval_root_grad(root, p)
+        g = g / np.maximum(np.linalg.norm(g, axis=1), 1e-12)[:, None]
+        return p + (off * band)[:, None] * g
+    return st.builds(place, hnp.arrays(np.float64, (n, 3), elements=st.floats(0.0, 1.0)),
+                     hnp.arrays(np.float64, (n,), elements=st.floats(-1.0, 1.0)))
+
+
+# ---------------------------------------------------------------------------- DEM states
+@dataclass(frozen=True, eq=False)
+class RigidState:
+    """Rigid-body state arrays (float64): positions (n, 3), quaternions (n, 4) (x, y, z, w),
+    velocities (n, 3) and world-frame angular velocities (n, 3)."""
+
+    positions: np.ndarray
+    quaternions: np.ndarray
+    velocities: np.ndarray
+    angular_velocities: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.positions)
+
+    def __repr__(self):
+        def a(x):
+            return np.array2string(x, precision=17, separator=", ")
+        return (f"RigidState(positions=np.array({a(self.positions)}), "
+                f"quaternions=np.array({a(self.quaternions)}), "
+                f"velocities=np.array({a(self.velocities)}), "
+                f"angular_velocities=np.array({a(self.angular_velocities)}))")
+
+
+def rigid_states(n, box=((0.0, 0.0, 0.0), (4.0, 4.0, 4.0)), max_speed: float = 1.0,
+                 max_spin: float = 1.0) -> st.SearchStrategy:
+    """:class:`RigidState` of ``n`` bodies (an int, or a strategy of ints >= 1) with positions
+    in ``box=(lo, hi)`` (on a 4096-step grid per axis), velocity components in
+    [-max_speed, max_speed] and world-frame spins in [-max_spin, max_spin] rad/s (2048 steps
+    each side), unit quaternions (x, y, z, w)."""
+    lo = np.asarray(box[0], float).reshape(3)
+    hi = np.asarray(box[1], float).reshape(3)
+    if not np.all(lo <= hi):
+        raise ValueError(f"box must satisfy lo <= hi, got {box!r}")
+    for nm, v in (("max_speed", max_speed), ("max_spin", max_spin)):
+        if not (math.isfinite(v) and v >= 0):
+            raise ValueError(f"{nm} must be finite and >= 0, got {v!r}")
+    counts = n if isinstance(n, st.SearchStrategy) else st.just(_check_int(n, "n", 1))
+
+    def grid(lo_, hi_, steps=4096):
+        # quantised values shrink in few steps (float arrays can take minutes to shrink)
+        return st.integers(0, steps).map(lambda k: lo_ + (hi_ - lo_) * k / steps)
+
+    def sym(h, steps=2048):
+        return st.integers(-steps, steps).map(lambda k: h * k / steps)
+
+    @st.composite
+    def draw_state(draw):
+        k = draw(counts)
+        if k < 1:
+            raise ValueError(f"n must be >= 1, got {k}")
+        pos = np.array([[draw(grid(lo[a], hi[a])) for a in range(3)] for _ in range(k)])
+        quats = np.array([draw(unit_quaternions()) for _ in range(k)], dtype=np.float64)
+        vel = np.array([[draw(sym(max_speed)) for _ in range(3)] for _ in range(k)])
+        spin = np.array([[draw(sym(max_spin)) for _ in range(3)] for _ in range(k)])
+        return RigidState(pos.reshape(k, 3), quats.reshape(k, 4), vel.reshape(k, 3),
+                          spin.reshape(k, 3))
+    return draw_state()
+
+
+def capacity_sequences(min_capacity: int = 1, max_capacity: int = 64, max_size: int = 6):
+    """Lists of contact-buffer capacities (ints in [min_capacity, max_capacity]) to apply in
+    order; shrinks towards one capacity of ``min_capacity``."""
+    lo = _check_int(min_capacity, "min_capacity", 1)
+    hi = _check_int(max_capacity, "max_capacity", lo)
+    size = _check_int(max_size, "max_size", 1)
+    return st.lists(st.integers(lo, hi), min_size=1, max_size=size)
+
+
+st.register_type_strategy(TreeRecipe, trees())

@@ -1,0 +1,28 @@
+"""Certification of the DEM engine: determinism of a pour, contact-buffer growth."""
+import pytest
+from hypothesis import settings
+from hypothesis import strategies as st
+
+from peclet_verify import properties as P
+from peclet_verify import strategies as pst
+
+pytestmark = pytest.mark.peclet_certify
+
+# each example is a pour or a subprocess: a handful is what fits a CI budget; nightly scales
+FEW = settings(max_examples=min(settings.default.max_examples, 5))
+
+
+def test_determinism_across_threads(peclet_certificate):
+    peclet_certificate(P.search(
+        lambda s: P.determinism(s), pst.rigid_states(st.integers(2, 12),
+                                                     box=((0, 0.3, 0), (3, 3, 3))),
+        name="determinism (1 thread twice, 2 threads)", settings=FEW))
+
+
+def test_buffer_growth(peclet_certificate):
+    peclet_certificate(P.search(
+        lambda a: P.buffer_growth(a[0], a[1], a[2]),
+        st.tuples(pst.trees(max_leaves=2, certified_only=True, transforms=False),
+                  pst.capacity_sequences(max_size=4),
+                  pst.rigid_states(st.integers(2, 5), box=((0, 0, 0), (1.5, 1.5, 1.5)))),
+        name="buffer growth", settings=FEW))

@@ -1,0 +1,105 @@
+"""The certification properties catch planted known-bad engines, with a small shrunk
+counterexample, and pass their correct twins."""
+import numba
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, Phase, settings
+from hypothesis import strategies as st
+
+from peclet_verify import planted
+from peclet_verify import properties as P
+from peclet_verify import strategies as pst
+
+FAST = settings(max_examples=30, derandomize=True, database=None, deadline=None,
+                suppress_health_check=list(HealthCheck))
+SHELL_AND_EXACT = pst.EXACT_KINDS + ("hollow_cylinder_shell",)
+
+
+def _nodes_in(text):
+    return sum(1 for line in text.splitlines() if line.startswith("n") and " = b.add_" in line)
+
+
+def test_overclaimed_shell_bound_is_caught():
+    res = P.search(lambda r: P.equation1(r, planted.OverclaimingBoundBackend()),
+                   pst.trees(kinds=SHELL_AND_EXACT, max_leaves=4), settings=FAST)
+    assert res.status == "failed" and res.worst < 0
+    assert "hollow_cylinder_shell" in res.counterexample
+    assert _nodes_in(res.counterexample) <= 3, res.counterexample
+
+
+def test_reference_bounds_hold_on_the_same_trees():
+    res = P.search(lambda r: P.equation1(r, P.ReferenceBackend()),
+                   pst.trees(kinds=SHELL_AND_EXACT, max_leaves=4), settings=FAST)
+    assert res.status == "passed" and res.details["applicable"] > 0
+
+
+def test_sign_flip_in_one_leaf_is_caught():
+    res = P.search(lambda r: P.sign_agreement(r, backend=planted.TreeWalkBackend(flip="torus"),
+                                              n=32),
+                   pst.trees(max_leaves=3), settings=FAST)
+    assert res.status == "failed" and res.worst > 0
+    assert "'torus'" in res.counterexample
+    assert _nodes_in(res.counterexample) <= 3, res.counterexample
+
+
+def test_tree_walk_without_flip_agrees():
+    res = P.search(lambda r: P.sign_agreement(r, backend=planted.TreeWalkBackend(), n=64),
+                   pst.trees(max_leaves=3), settings=settings(FAST, max_examples=10))
+    assert res.status == "passed"
+
+
+KINDS = ("sphere", "box", "ellipsoid", "hollow_cylinder", "torus", "capsule")
+
+
+def test_biased_cell_quadrature_is_caught():
+    res = P.search(lambda r: P.quadrature_convergence(r, planted.biased_cell_quadrature,
+                                                      ns=(8, 16)),
+                   pst.leaves(kinds=KINDS), settings=settings(FAST, max_examples=10))
+    assert res.status == "failed" and res.worst > 1e-2
+    assert _nodes_in(res.counterexample) == 1, res.counterexample
+
+
+def test_closed_forms_match_a_fine_cell_rule():
+    # the closed forms themselves are checked against brute force (2 % at n=48, first order)
+    recipe = pst.TreeRecipe(pst.LeafCall("torus", (0.8, 0.3), pst.Transform(
+        (0.1, 0.2, -0.3), (0.0, 0.3826834323650898, 0.0, 0.9238795325112867), 1.3)))
+    v0, com0, mom0 = P.closed_form(recipe)
+    b, root = recipe.build()
+    c, r, _ = b.node_bound(root)
+    v, com, mom = planted.cell_quadrature(b, root, c - r, c + r, 48)
+    assert abs(v - v0) / v0 < 0.02
+    assert np.linalg.norm(com - com0) < 0.02
+    assert np.max(np.abs(mom - mom0)) / mom0.max() < 0.03
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs >= 2 numba threads")
+def test_thread_order_dependent_sum_is_caught():
+    res = P.search(lambda s: P.determinism(s, planted.thread_order_pour),
+                   pst.rigid_states(st.integers(2, 8)),
+                   # shrinking float states runs into Hypothesis's 5-minute shrink limit here
+                   settings=settings(FAST, max_examples=15,
+                                     phases=[Phase.explicit, Phase.reuse, Phase.generate]))
+    assert res.status == "failed" and res.worst >= 2
+    assert "RigidState" in res.counterexample
+
+
+def test_deterministic_pour_passes():
+    def serial_pour(state):
+        pos = np.array(state.positions)
+        return [pos + 1e-3 * np.cumsum(state.velocities, axis=0)]
+    res = P.search(lambda s: P.determinism(s, serial_pour), pst.rigid_states(3),
+                   settings=settings(FAST, max_examples=5))
+    assert res.status == "passed" and res.worst == 1
+
+
+def test_buffer_never_grown_is_caught_and_grown_one_passes():
+    recipe = pst.TreeRecipe(pst.LeafCall("box", (0.5, 0.3, 0.4)))
+    q = np.array([[0, 0, 0, 1], [0, 0, 0.38, 0.92], [0.1, 0, 0, 1]], float)
+    state = pst.RigidState(np.array([[0, 0, 0], [0.7, 0.1, 0], [0.2, 0.5, 0.1]], float),
+                           q / np.linalg.norm(q, axis=1)[:, None], np.zeros((3, 3)),
+                           np.zeros((3, 3)))
+    bad = P.buffer_growth(recipe, [1, 2], state, engine="peclet_verify.planted:fixed_buffer_engine")
+    assert bad.status == "failed" and "out-of-bounds write" in bad.counterexample
+    good = P.buffer_growth(recipe, [1, 2], state,
+                           engine="peclet_verify.planted:growing_buffer_engine")
+    assert good.status == "passed" and good.details["reference_pairs"] == 3
