@@ -74,6 +74,8 @@ def build_parser():
                     help="Monte Carlo points per bulk window (default 400000)")
     pr.add_argument("--shell-points", type=_positive_int("--shell-points"), default=1200,
                     help="surface probes per ring (default 1200)")
+    pr.add_argument("--animation", action="store_true",
+                    help="also render the pour as pour.gif (adds 10-20 s)")
     pr.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     pr.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -89,7 +91,8 @@ def main(argv=None):
         res = pipeline.run(out=args.out, rings=args.rings, seed=args.seed, threads=args.threads,
                            steps_scale=args.steps_scale, box=args.box,
                            mc_samples=args.mc_samples, shell_points=args.shell_points,
-                           progress=not args.quiet, write_figures=not args.no_figures)
+                           progress=not args.quiet, write_figures=not args.no_figures,
+                           animation=args.animation)
         print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
         return 0
     return 2

@@ -265,3 +265,13 @@ def test_save_load_resumes_bitwise(tmp_path):
         assert np.array_equal(getattr(a, get)(), getattr(b, get)())
     assert a.num_contacts() > 0
     assert not list(tmp_path.glob(".peclet-dem-*"))  # the temp file was renamed away
+
+
+def test_non_finite_state_stops_the_step_naming_the_particle():
+    sim = sphere_sim(3, spacing=3.0)
+    sim.set_inv_mass([0.0, 1.0, 1.0])              # particle 0 ignores gravity
+    sim.set_gravity(0.0, -1e308, 0.0)
+    with pytest.raises(StepError, match="step 1: particle 1 has a non-finite state"):
+        sim.step(1e10)                              # v = g dt overflows to -inf
+    assert sim.step_count == 0
+    assert np.all(np.isfinite(sim.get_velocities()))

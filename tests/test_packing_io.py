@@ -119,8 +119,7 @@ def test_figures_are_written_and_not_blank(tmp_path):
     ke = np.exp(-t) + 1e-4
     _check_png(F.kinetic_energy(t, ke, Protocol().phases(), 2e-3, tmp_path / "ke.png"))
     pk = ring_pack(8)
-    v2, f2, _ = A.surface_mesh(el.builder, el.root, 0.62, 20)
-    _check_png(F.pack_by_height(pk.positions, pk.rotations(), v2, f2, pk.box,
+    _check_png(F.pack_by_height(pk.positions, pk.rotations(), v, pk.box,
                                 tmp_path / "pack.png"))
     _check_png(F.orientation_histogram(np.random.default_rng(0).random(48),
                                        tmp_path / "ori.png"))
@@ -167,3 +166,16 @@ def test_set_threads_takes_effect_and_validates():
             set_threads(cap + 1)
     finally:
         numba.set_num_threads(cap)
+
+
+def test_pour_animation_writes_a_multi_frame_gif(tmp_path):
+    from PIL import Image
+
+    g = np.random.default_rng(0)
+    frames = [(np.c_[g.uniform(0, 3, 4), np.full(4, 3.0 - 0.3 * k), g.uniform(0, 3, 4)],
+               g.normal(size=(4, 4))) for k in range(5)]
+    shell = g.normal(size=(200, 3))
+    shell /= 2 * np.linalg.norm(shell, axis=1)[:, None]
+    path = F.pour_animation(frames, np.arange(5) * 0.1, shell, (3.0, 3.0), tmp_path / "a.gif")
+    with Image.open(path) as im:
+        assert im.n_frames == 5

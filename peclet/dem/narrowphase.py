@@ -34,7 +34,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from peclet.core.geom.kernels import MAX_STACK, eval_point
+from peclet.core.geom.kernels import MAX_STACK, STACK_COLS, eval_point
 from peclet.dem.rigid import quat_to_matrix
 
 MAX_CLUSTERS = 4
@@ -124,7 +124,7 @@ def _probes_vs_tree(xa, Ra, s, shape_p0, shape_cl, cl_centre, cl_rad, cl_range, 
 
 
 @njit(cache=True)
-def _reduce(hits, nh, lab, reps, tol2, base, out_point, out_normal, out_gap, out_feat):
+def _reduce(hits, nh, lab, reps, tol2, touch, base, out_point, out_normal, out_gap, out_feat):
     """Reduce a task's hits to at most MAX_PER_TASK contacts written from slot ``base``."""
     for i in range(nh):
         lab[i] = -1
@@ -163,10 +163,13 @@ def _reduce(hits, nh, lab, reps, tol2, base, out_point, out_normal, out_gap, out
         ny = hits[i0, 4]
         nz = hits[i0, 5]
         # farthest from the deepest point, in the contact plane
+        # the spread points are chosen among the hits within ``touch`` of the deepest: the
+        # support polygon of what actually touches, not of far speculative probes
+        lim = hits[i0, _HG] + touch
         i1 = -1
         b1 = tol2
         for i in range(nh):
-            if lab[i] == k:
+            if lab[i] == k and hits[i, _HG] <= lim:
                 ex = hits[i, 0] - hits[i0, 0]
                 ey = hits[i, 1] - hits[i0, 1]
                 ez = hits[i, 2] - hits[i0, 2]
@@ -186,7 +189,7 @@ def _reduce(hits, nh, lab, reps, tol2, base, out_point, out_normal, out_gap, out
             b2 = thr
             b3 = -thr
             for i in range(nh):
-                if lab[i] == k:
+                if lab[i] == k and hits[i, _HG] <= lim:
                     ex = hits[i, 0] - hits[i0, 0]
                     ey = hits[i, 1] - hits[i0, 1]
                     ez = hits[i, 2] - hits[i0, 2]
@@ -214,10 +217,10 @@ def _reduce(hits, nh, lab, reps, tol2, base, out_point, out_normal, out_gap, out
 def _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
            shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
            cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
-           max_hits, tol2, out_count, out_point, out_normal, out_gap, out_feat):
+           max_hits, tol2, touch, out_count, out_point, out_normal, out_gap, out_feat):
     """Tasks [ch * size, (ch + 1) * size): gather each task's hits, reduce them into its
     own slots."""
-    st = np.empty((MAX_STACK, 4))
+    st = np.empty((MAX_STACK, STACK_COLS))
     hits = np.empty((max_hits, HIT_COLS))
     lab = np.empty(max_hits, np.int64)
     reps = np.empty(MAX_CLUSTERS, np.int64)
@@ -296,7 +299,7 @@ def _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
                                          cl_range, probes, origin, ident, o0, o1, sg,
                                          wall_lip[w], np.inf, 1.0, 0, margin, ops, lk, lr,
                                          st, hits, nh)
-        out_count[t] = _reduce(hits, nh, lab, reps, tol2, t * MAX_PER_TASK,
+        out_count[t] = _reduce(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
                                out_point, out_normal, out_gap, out_feat)
 
 
@@ -305,7 +308,7 @@ def narrow_phase(task_a, task_b, task_shift, pos, rot, shape_of,
                  shape_kind, shape_rad, shape_op, shape_lip, shape_p0, shape_cl,
                  cl_centre, cl_rad, cl_range, probes,
                  wall_op, wall_sign, wall_lip,
-                 ops, lk, lr, margin, max_hits, tol2, chunks,
+                 ops, lk, lr, margin, max_hits, tol2, touch, chunks,
                  out_count, out_point, out_normal, out_gap, out_feat):
     """Contacts of every task into its own ``MAX_PER_TASK`` slots; ``out_count[t]`` = used.
 
@@ -321,13 +324,13 @@ def narrow_phase(task_a, task_b, task_shift, pos, rot, shape_of,
             _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
                    shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
                    cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
-                   max_hits, tol2, out_count, out_point, out_normal, out_gap, out_feat)
+                   max_hits, tol2, touch, out_count, out_point, out_normal, out_gap, out_feat)
     else:
         for ch in range(nchunk):
             _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
                    shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
                    cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
-                   max_hits, tol2, out_count, out_point, out_normal, out_gap, out_feat)
+                   max_hits, tol2, touch, out_count, out_point, out_normal, out_gap, out_feat)
 
 
 @njit(cache=True)

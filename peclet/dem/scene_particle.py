@@ -64,20 +64,30 @@ def _as_bounds(bounds):
 
 
 def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points=1200,
-          density=1.0, seed=0):
+          density=1.0, seed=0, tol=1e-6):
     """Measure ``root``, reframe it to its principal frame and place shell probes.
 
     Parameters
     ----------
     bounds : (lo, hi), a box in the authoring frame that contains the solid.
-    n : int in [2, 4096], quadrature resolution (see :func:`quadrature.body_properties`:
-        initial breakpoint samples per axis and line-step floor ``min(hi - lo) / (2n)``).
+    n : int in [2, 4096], top-level quadrature cells per axis (see
+        :func:`quadrature.body_properties`); cut cells refine adaptively below it, so n = 8
+        is enough for a Pall ring and the page's n = 32 only costs more time.
+    tol : relative accuracy asked of the quadrature (its ``volume_error`` reports what was
+        reached).
     shell_resolution : int in [8, 1024], marching-cubes lattice per axis for the shell.
     target_shell_points : int >= 4, number of shell probes (exact).
     density : > 0.
     """
     lo, hi = _as_bounds(bounds)
-    home, props = quadrature.principal_frame(builder, root, lo, hi, density=density, n=n)
+    t = target_shell_points
+    if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 4:
+        raise ValueError(f"target_shell_points must be an integer >= 4, got {t!r}")
+    r = shell_resolution
+    if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 8 <= r <= 1024:
+        raise ValueError(f"shell_resolution must be an integer in [8, 1024], got {r!r}")
+    home, props = quadrature.principal_frame(builder, root, lo, hi, density=density, n=n,
+                                              tol=tol)
     # a box in the home frame containing the solid: the authoring box's corners, rotated
     At = props.axes.T
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])

@@ -49,6 +49,10 @@ _WALL_BASE = 1 << 22      # key packing for the warm-start cache
 _FEATURE_BITS = 26
 
 
+#: A pair's manifold spreads over the hits within this fraction of the base margin of its
+#: deepest point (the touching patch); farther speculative hits are represented by the deepest.
+TOUCH_FRACTION = 0.1
+
 #: Gaps below this fraction of the smallest bounding radius count as touching (see _slop).
 SLOP_FRACTION = 5e-4
 
@@ -569,7 +573,8 @@ class Simulation:
             fl["shape_op"], fl["shape_lip"], fl["shape_p0"], fl["shape_cl"], fl["cl_centre"],
             fl["cl_rad"], fl["cl_range"], fl["probes"], fl["wall_op"], fl["wall_sign"],
             fl["wall_lip"], fl["ops"], fl["lk"], fl["lr"], margin, fl["max_hits"],
-            (1e-6 * scale) ** 2, self._narrow_chunks(ta, tb), count, point, normal, gap, feat)
+            (1e-6 * scale) ** 2, TOUCH_FRACTION * self._margin_fraction * scale,
+            self._narrow_chunks(ta, tb), count, point, normal, gap, feat)
         total = int(count.sum())
         excl = np.concatenate([[0], np.cumsum(count)[:-1]]) if ntask else np.zeros(0, np.int64)
         idx = (np.repeat(np.arange(ntask, dtype=np.int64) * narrowphase.MAX_PER_TASK - excl,
@@ -671,7 +676,9 @@ class Simulation:
         q = self._quat.copy()
         v = self._vel.copy()
         w = self._omega.copy()
-        v[inv_mass > 0] += self._gravity * dt
+        with np.errstate(over="ignore", invalid="ignore"):   # the guard reports it
+            v[inv_mass > 0] += self._gravity * dt
+        self._guard(x, q, v, w)                     # before any kernel sees a bad value
         rot = narrowphase.rotation_matrices(q)
         margin = self._margin(v, w, dt)
         c = self._detect(x, rot, margin)
@@ -714,6 +721,7 @@ class Simulation:
             c["a"], c["b"], c["normal"], t1v, t2v, np.ascontiguousarray(ra),
             np.ascontiguousarray(rb), c["gap"], e_c, beta_c, mu_c, lam, v, w, inv_mass, invI,
             dt, rest, self._slop(), self._vel_iters)
+        self._guard(x, q, v, w)
         x += v * dt
         _advance_rotations(q, w, inv_inertia, dt)
         gap_end = c["gap"] + dt * vn

@@ -40,7 +40,7 @@ def _cover_kernel(ops, lk, lr, s0, s1, e0, e1, img_pos, img_rot, cutoff, pts, ni
     c2 = cutoff * cutoff
     nchunk = (n + K.CHUNK - 1) // K.CHUNK
     for c in prange(nchunk):
-        st = np.empty((K.MAX_STACK, 4))
+        st = np.empty((K.MAX_STACK, K.STACK_COLS))
         for q in range(c * K.CHUNK, min(n, (c + 1) * K.CHUNK)):
             cnt = 0
             env = 0
@@ -74,7 +74,7 @@ def _probe_min_kernel(ops, lk, lr, s0, s1, shell, pa, ra, pb, rb, out):
     npair = pa.shape[0]
     ns = shell.shape[0]
     for k in prange(npair):
-        st = np.empty((K.MAX_STACK, 4))
+        st = np.empty((K.MAX_STACK, K.STACK_COLS))
         A = ra[k]
         B = rb[k]
         best = np.inf
@@ -185,11 +185,14 @@ def cover_fractions(geo: PackGeometry, window, n_samples=400_000, seed=0):
                 double=dbl, double_se=fraction_se(dbl, n), n_samples=n)
 
 
-def contacts(geo: PackGeometry):
+def contacts(geo: PackGeometry, gap=0.0):
     """Coordination from the probe-inside test run BOTH ways, and the probe overlap depth.
 
     A pair (i, image j), j's owner != i, with centres closer than two bounding radii touches if a
-    probe of either lies strictly inside the other's tree. Returns a dict: counts (N,) contacts
+    probe of either comes closer than ``gap`` (a length >= 0) to the other's tree: ``gap = 0``
+    is the page's strictly-inside test, which suits an engine that lets bodies overlap; an
+    engine that removes overlap leaves touching bodies at gaps of the order of its resting slop
+    plus the sag of the probe sampling, and needs ``gap`` of that order. Returns a dict: counts (N,) contacts
     per body (the page's count over images), z_mean, rattlers (bodies with none), pairs (ordered
     candidate pairs), max_depth (deepest probe of any body inside another, a length) and
     depths (per touching pair).
@@ -209,7 +212,9 @@ def contacts(geo: PackGeometry):
     m_ab = geo.probe_min(ai, bj)
     # the reverse direction: body j's probes (carried by its image) inside body i
     m_ba = _probe_min_reverse(geo, ai, bj)
-    touch = (m_ab < 0.0) | (m_ba < 0.0)
+    if not (np.isfinite(gap) and gap >= 0.0):
+        raise ValueError(f"gap must be a finite length >= 0, got {gap!r}")
+    touch = (m_ab < gap) | (m_ba < gap)
     cnt = np.bincount(ai[touch], minlength=pack.n) if len(ai) else np.zeros(pack.n, int)
     depth = np.maximum(-np.minimum(m_ab, m_ba), 0.0)
     return dict(counts=cnt, z_mean=float(cnt.mean()), rattlers=int((cnt < 1).sum()),

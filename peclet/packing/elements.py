@@ -132,8 +132,8 @@ def pall_ring(r_outer=0.5, height=1.0, thickness=0.12, n_windows=4, window_y=0.2
     n_windows : windows per row, integer in [1, 16]; the lower row is offset by half a pitch.
     window_y : height of the two window rows (at +-window_y), in [0, height/2).
     window_half : (radial, axial, tangential) half-extents of each window box, centred on the
-        outer radius; the radial half-extent must be >= thickness so the window spans the wall, the axial one
-        < height/2.
+        outer radius; the radial half-extent must be >= thickness so the window spans the
+        wall, the axial one < height/2.
     web_half : (x, y, z) half-extents of the two crossed web plates at y = +-window_y; x must be
         <= r_outer - thickness/2 (the web ends inside the wall).
     builder : an existing SceneBuilder to add to (default: a new one).

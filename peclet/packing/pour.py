@@ -78,8 +78,9 @@ class Protocol:
 @dataclass
 class PourResult:
     """What :func:`pour` returns. Positions (N, 3) and quaternions (N, 4, x y z w, normalised)
-    at the end; ke / t the kinetic energy (mass x length^2 / time^2) and time at every
-    ``frame_every``-th step; frames [(positions, quaternions)] at the same steps; seconds the
+    at the end; ke / t the kinetic energy (mass x length^2 / time^2) and time after every
+    step; frames [(positions, quaternions)] after every ``frame_every``-th step (from the
+    first), at times frame_t; seconds the
     wall-clock of the stepping; sim the live Simulation; shape_id the element's shape."""
 
     sim: object
@@ -90,6 +91,7 @@ class PourResult:
     ke: list = field(default_factory=list)
     t: list = field(default_factory=list)
     frames: list = field(default_factory=list)
+    frame_t: list = field(default_factory=list)
     steps: int = 0
     seconds: float = 0.0
     protocol: Protocol = None
@@ -166,12 +168,13 @@ def pour(particle, n=48, box=3.5, seed=5, protocol=None, material=(0.15, 0.0, 0.
             if damp is not None:
                 sim.set_velocities(np.asarray(sim.get_velocities()) * damp)
                 sim.set_angular_velocities(np.asarray(sim.get_angular_velocities()) * damp)
-            if res.steps % frame_every == 0:
+            res.steps += 1
+            res.ke.append(float(sim.kinetic_energy()))
+            res.t.append(res.steps * dt)
+            if (res.steps - 1) % frame_every == 0:
                 res.frames.append((np.array(sim.get_positions(), dtype=np.float64),
                                    np.array(sim.get_quaternions(), dtype=np.float64)))
-                res.ke.append(float(sim.kinetic_energy()))
-                res.t.append((res.steps + 1) * dt)
-            res.steps += 1
+                res.frame_t.append(res.steps * dt)
             bar.update(1, label)
 
     t0 = time.perf_counter()

@@ -41,6 +41,8 @@ OP_DIFFERENCE = 34
 
 #: Stack slots per point; the builder refuses trees that would need more.
 MAX_STACK = 64
+#: Columns of the scratch stack: phi, gradient (3), and the leaf row that produced phi.
+STACK_COLS = 5
 
 #: Points per parallel chunk. Fixed, so results never depend on the thread count.
 CHUNK = 256
@@ -53,15 +55,18 @@ def _sgn(v):
 
 @njit(cache=True)
 def _box2(u, w):
-    """Signed distance in a 2-D frame where the box is {u <= 0, w <= 0}; returns (d, du, dw)."""
+    """Signed distance in a 2-D frame where the box is {u <= 0, w <= 0}.
+
+    Returns (d, du, dw, feature) with feature 0 where the u side dominates, 1 otherwise."""
     mu = u if u > 0.0 else 0.0
     mw = w if w > 0.0 else 0.0
     outside = math.sqrt(mu * mu + mw * mw)
+    feat = 0 if u >= w else 1
     if outside > 0.0:
-        return outside, mu / outside, mw / outside
+        return outside, mu / outside, mw / outside, feat
     if u >= w:
-        return u, 1.0, 0.0
-    return w, 0.0, 1.0
+        return u, 1.0, 0.0, feat
+    return w, 0.0, 1.0, feat
 
 
 @njit(cache=True)
@@ -90,17 +95,20 @@ def _segment2(px, py, ax, ay, bx, by):
 
 @njit(cache=True)
 def leaf_eval(kind, L, j, x, y, z):
-    """Value and gradient of leaf row ``j`` of ``L`` at canonical-frame point (x, y, z).
+    """Value, gradient and feature of leaf row ``j`` of ``L`` at canonical point (x, y, z).
 
-    Returns (phi, gx, gy, gz). An unknown kind returns NaN: the builder refuses unknown kinds,
-    so a NaN here means a corrupted table, and the caller's finite check reports it.
+    Returns (phi, gx, gy, gz, feature). ``feature`` numbers the smooth piece of the leaf's
+    surface that is active (a box face, a profile segment of a cone, a cap or a wall of a
+    tube; 0 for smooth leaves): it changes exactly across the leaf's own creases, which the
+    quadrature uses as breakpoints. An unknown kind returns NaN: the builder refuses unknown
+    kinds, so a NaN here means a corrupted table, and the caller's finite check reports it.
     """
     if kind == 1:  # sphere
         r = L[j, 0]
         n = math.sqrt(x * x + y * y + z * z)
         if n > 0.0:
-            return n - r, x / n, y / n, z / n
-        return -r, 1.0, 0.0, 0.0
+            return n - r, x / n, y / n, z / n, 0
+        return -r, 1.0, 0.0, 0.0, 0
 
     if kind == 2:  # hollow_cylinder about y: rOuter, height, thickness
         ro = L[j, 0]
@@ -108,9 +116,11 @@ def leaf_eval(kind, L, j, x, y, z):
         ht = 0.5 * L[j, 2]
         rho, ex, ez = _radial(x, z)
         du = rho - (ro - ht)
-        d, gu, gw = _box2(abs(du) - ht, abs(y) - hh)
+        d, gu, gw, f = _box2(abs(du) - ht, abs(y) - hh)
         gr = gu * _sgn(du)
-        return d, gr * ex, gw * _sgn(y), gr * ez
+        # features: 0 outer wall, 1 inner wall, 2 top cap, 3 bottom cap
+        feat = (0 if du >= 0.0 else 1) if f == 0 else (2 if y >= 0.0 else 3)
+        return d, gr * ex, gw * _sgn(y), gr * ez, feat
 
     if kind == 3:  # box
         hx = L[j, 0]
@@ -119,18 +129,24 @@ def leaf_eval(kind, L, j, x, y, z):
         qx = abs(x) - hx
         qy = abs(y) - hy
         qz = abs(z) - hz
+        if qx >= qy and qx >= qz:
+            feat = 0 if x >= 0.0 else 1
+        elif qy >= qz:
+            feat = 2 if y >= 0.0 else 3
+        else:
+            feat = 4 if z >= 0.0 else 5
         mx = qx if qx > 0.0 else 0.0
         my = qy if qy > 0.0 else 0.0
         mz = qz if qz > 0.0 else 0.0
         outside = math.sqrt(mx * mx + my * my + mz * mz)
         if outside > 0.0:
             return (outside, _sgn(x) * mx / outside, _sgn(y) * my / outside,
-                    _sgn(z) * mz / outside)
-        if qx >= qy and qx >= qz:
-            return qx, _sgn(x), 0.0, 0.0
-        if qy >= qz:
-            return qy, 0.0, _sgn(y), 0.0
-        return qz, 0.0, 0.0, _sgn(z)
+                    _sgn(z) * mz / outside, feat)
+        if feat < 2:
+            return qx, _sgn(x), 0.0, 0.0, feat
+        if feat < 4:
+            return qy, 0.0, _sgn(y), 0.0, feat
+        return qz, 0.0, 0.0, _sgn(z), feat
 
     if kind == 4:  # hollow_cylinder_shell about z: rOuter, rInner, height
         rho, ex, ey = _radial(x, y)
@@ -138,19 +154,20 @@ def leaf_eval(kind, L, j, x, y, z):
         b = L[j, 1] - rho
         c = abs(z) - 0.5 * L[j, 2]
         if a >= b and a >= c:
-            return a, ex, ey, 0.0
+            return a, ex, ey, 0.0, 0
         if b >= c:
-            return b, -ex, -ey, 0.0
-        return c, 0.0, 0.0, _sgn(z)
+            return b, -ex, -ey, 0.0, 1
+        return c, 0.0, 0.0, _sgn(z), (2 if z >= 0.0 else 3)
 
     if kind == 5:  # capsule about y: radius, halfLength
         hl = L[j, 1]
         cy = min(max(y, -hl), hl)
         dy = y - cy
+        feat = 0 if dy == 0.0 else (1 if dy > 0.0 else 2)
         n = math.sqrt(x * x + dy * dy + z * z)
         if n > 0.0:
-            return n - L[j, 0], x / n, dy / n, z / n
-        return -L[j, 0], 1.0, 0.0, 0.0
+            return n - L[j, 0], x / n, dy / n, z / n, feat
+        return -L[j, 0], 1.0, 0.0, 0.0, feat
 
     if kind == 6:  # torus about y: R, r
         rho, ex, ez = _radial(x, z)
@@ -158,8 +175,8 @@ def leaf_eval(kind, L, j, x, y, z):
         n = math.sqrt(a * a + y * y)
         if n > 0.0:
             ga = a / n
-            return n - L[j, 1], ga * ex, y / n, ga * ez
-        return -L[j, 1], ex, 0.0, ez
+            return n - L[j, 1], ga * ex, y / n, ga * ez, 0
+        return -L[j, 1], ex, 0.0, ez, 0
 
     if kind == 7:  # capped cone about y: rBottom at y=-h, rTop at y=+h, h
         r1 = L[j, 0]
@@ -169,15 +186,18 @@ def leaf_eval(kind, L, j, x, y, z):
         # distance to the three profile segments in the (rho, y) half-plane
         d2, vx, vy = _segment2(rho, y, 0.0, -h, r1, -h)
         nx, ny = 0.0, -1.0
+        feat = 0
         e2, wx, wy = _segment2(rho, y, r1, -h, r2, h)
         if e2 < d2:
             d2, vx, vy = e2, wx, wy
             sl = math.sqrt(4.0 * h * h + (r2 - r1) * (r2 - r1))
             nx, ny = 2.0 * h / sl, -(r2 - r1) / sl
+            feat = 1
         e2, wx, wy = _segment2(rho, y, r2, h, 0.0, h)
         if e2 < d2:
             d2, vx, vy = e2, wx, wy
             nx, ny = 0.0, 1.0
+            feat = 2
         inside = abs(y) <= h and 2.0 * h * (rho - r1) <= (r2 - r1) * (y + h)
         d = math.sqrt(d2)
         if d > 0.0:
@@ -189,7 +209,7 @@ def leaf_eval(kind, L, j, x, y, z):
             gy = ny
         if inside:
             d = -d
-        return d, gr * ex, gy, gr * ez
+        return d, gr * ex, gy, gr * ez, feat
 
     if kind == 8:  # ellipsoid: rx, ry, rz (bound)
         rx = L[j, 0]
@@ -204,13 +224,13 @@ def leaf_eval(kind, L, j, x, y, z):
         k0 = math.sqrt(ax * ax + ay * ay + az * az)
         k1 = math.sqrt(bx * bx + by * by + bz * bz)
         if k0 == 0.0 or k1 == 0.0:
-            return -min(rx, min(ry, rz)), 1.0, 0.0, 0.0
+            return -min(rx, min(ry, rz)), 1.0, 0.0, 0.0, 0
         v = k0 * (k0 - 1.0) / k1
         # grad k0 = (x/r^2)/k0 = b/k0; grad k1 = (x/r^4)/k1 = (b/r^2)/k1
         c0 = (2.0 * k0 - 1.0) / (k0 * k1)
         c1 = k0 * (k0 - 1.0) / (k1 * k1 * k1)
         return (v, c0 * bx - c1 * bx / (rx * rx), c0 * by - c1 * by / (ry * ry),
-                c0 * bz - c1 * bz / (rz * rz))
+                c0 * bz - c1 * bz / (rz * rz), 0)
 
     if kind == 9:  # superquadric: rx, ry, rz, e (bound)
         rx = L[j, 0]
@@ -223,7 +243,7 @@ def leaf_eval(kind, L, j, x, y, z):
         az = abs(z) / rz
         amax = max(ax, max(ay, az))
         if amax == 0.0:
-            return -rmin, 1.0, 0.0, 0.0
+            return -rmin, 1.0, 0.0, 0.0, 0
         g = (ax / amax) ** m + (ay / amax) ** m + (az / amax) ** m
         f = amax * g ** (1.0 / m)
         # n = grad F, homogeneous of degree 0 so never zero away from the origin
@@ -237,29 +257,36 @@ def leaf_eval(kind, L, j, x, y, z):
         nn = math.sqrt(nn2)
         d = (f - 1.0) / nn
         if d < -rmin:
-            return -rmin, 0.0, 0.0, 0.0
+            return -rmin, 0.0, 0.0, 0.0, 1
         # grad d = n/|n| - (F - 1) H n / |n|^3, H the Hessian of F (see the leaf table docs)
         k = (m - 1.0) / f
         hx = k * tx ** (m - 2.0) / rx * (nx / rx - _sgn(x) * ax * nn2 / f)
         hy = k * ty ** (m - 2.0) / ry * (ny / ry - _sgn(y) * ay * nn2 / f)
         hz = k * tz ** (m - 2.0) / rz * (nz / rz - _sgn(z) * az * nn2 / f)
         c = (f - 1.0) / (nn2 * nn)
-        return d, nx / nn - c * hx, ny / nn - c * hy, nz / nn - c * hz
+        return d, nx / nn - c * hx, ny / nn - c * hy, nz / nn - c * hz, 0
 
     if kind == 10:  # half_space: unit normal n, offset
         nx = L[j, 0]
         ny = L[j, 1]
         nz = L[j, 2]
-        return nx * x + ny * y + nz * z - L[j, 3], nx, ny, nz
+        return nx * x + ny * y + nz * z - L[j, 3], nx, ny, nz, 0
 
-    return np.nan, np.nan, np.nan, np.nan
+    return np.nan, np.nan, np.nan, np.nan, 0
+
+
+#: Features per leaf in the active-feature id ``leaf_row * FEATURES + feature``.
+FEATURES = 8
 
 
 @njit(cache=True)
 def eval_point(ops, leaf_kind, leaf_reals, op_begin, op_end, x, y, z, st):
     """Evaluate the program ``ops[op_begin:op_end]`` at world point (x, y, z).
 
-    ``st`` is a scratch array (MAX_STACK, 4). Returns (phi, gx, gy, gz).
+    ``st`` is a scratch array (MAX_STACK, STACK_COLS). Returns (phi, gx, gy, gz); afterwards
+    ``st[0, 4]`` holds the active feature ``leaf_row * FEATURES + feature`` (the leaf whose
+    value phi is, ties going left, and its active surface piece), which the quadrature uses to
+    locate creases.
     """
     sp = 0
     L = leaf_reals
@@ -275,11 +302,12 @@ def eval_point(ops, leaf_kind, leaf_reals, op_begin, op_end, x, y, z, st):
             lx = (L[j, 11] * dx + L[j, 14] * dy + L[j, 17] * dz) / s
             ly = (L[j, 12] * dx + L[j, 15] * dy + L[j, 18] * dz) / s
             lz = (L[j, 13] * dx + L[j, 16] * dy + L[j, 19] * dz) / s
-            v, gx, gy, gz = leaf_eval(leaf_kind[j], L, j, lx, ly, lz)
+            v, gx, gy, gz, feat = leaf_eval(leaf_kind[j], L, j, lx, ly, lz)
             st[sp, 0] = s * v
             st[sp, 1] = L[j, 11] * gx + L[j, 12] * gy + L[j, 13] * gz
             st[sp, 2] = L[j, 14] * gx + L[j, 15] * gy + L[j, 16] * gz
             st[sp, 3] = L[j, 17] * gx + L[j, 18] * gy + L[j, 19] * gz
+            st[sp, 4] = j * FEATURES + feat
             sp += 1
         else:
             sp -= 1
@@ -291,18 +319,21 @@ def eval_point(ops, leaf_kind, leaf_reals, op_begin, op_end, x, y, z, st):
                     st[sp - 1, 1] = st[sp, 1]
                     st[sp - 1, 2] = st[sp, 2]
                     st[sp - 1, 3] = st[sp, 3]
+                    st[sp - 1, 4] = st[sp, 4]
             elif code == OP_INTERSECTION:
                 if b > a:
                     st[sp - 1, 0] = b
                     st[sp - 1, 1] = st[sp, 1]
                     st[sp - 1, 2] = st[sp, 2]
                     st[sp - 1, 3] = st[sp, 3]
+                    st[sp - 1, 4] = st[sp, 4]
             else:
                 if -b > a:
                     st[sp - 1, 0] = -b
                     st[sp - 1, 1] = -st[sp, 1]
                     st[sp - 1, 2] = -st[sp, 2]
                     st[sp - 1, 3] = -st[sp, 3]
+                    st[sp - 1, 4] = st[sp, 4]
     return st[0, 0], st[0, 1], st[0, 2], st[0, 3]
 
 
@@ -317,7 +348,7 @@ def eval_points(ops, leaf_kind, leaf_reals, op_begin, op_end, points, out_phi, o
     n = points.shape[0]
     nchunk = (n + CHUNK - 1) // CHUNK
     for c in prange(nchunk):
-        st = np.empty((MAX_STACK, 4))
+        st = np.empty((MAX_STACK, STACK_COLS))
         i1 = min(n, (c + 1) * CHUNK)
         for i in range(c * CHUNK, i1):
             v, gx, gy, gz = eval_point(ops, leaf_kind, leaf_reals, op_begin, op_end,
@@ -341,7 +372,7 @@ def bake_lattice(ops, leaf_kind, leaf_reals, op_begin, op_end, origin, spacing, 
     nz = dims[2]
     nrow = ny * nz
     for r in prange(nrow):
-        st = np.empty((MAX_STACK, 4))
+        st = np.empty((MAX_STACK, STACK_COLS))
         jy = r % ny
         kz = r // ny
         y = origin[1] + jy * spacing[1]

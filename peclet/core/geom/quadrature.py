@@ -1,32 +1,33 @@
 """Mass properties of a CSG solid by implicit quadrature (sign of phi only).
 
-Method: nested 1-D integration, x outer, y middle, z inner (a Saye-style height-function
-reduction taken one axis at a time; Saye, SIAM J. Sci. Comput. 37(2) A993, 2015).
+Method: an adaptive octree of cells with a Saye-style height-function rule in each cut cell
+(Saye, SIAM J. Sci. Comput. 37(2) A993, 2015), extended with exact breakpoints at CSG creases.
 
-- **Inner (z), exact.** Along a line (x, y, .) every root of phi in [zlo, zhi] is bracketed
-  by sign and refined to ~1e-15 by safeguarded Newton (the analytic gradient) with bisection
-  fallback. The inside runs between roots give the polynomial moments of 1, z, z^2 in closed
-  form. Root isolation: for a 1-Lipschitz tree the step is ``max(|phi|, hmin)`` (``|phi|``
-  proves the skipped stretch is free of roots: the certificate, one evaluation per empty
-  stretch); otherwise a uniform ``hmin``. Between two same-sign samples whose directional
-  derivative shows an extremum, the extremum is located (bisection on the derivative sign) so
-  that a grazing line that clips the solid is not missed.
-- **Middle (y) and outer (x), breakpoints + adaptive Gauss-Legendre.** The transverse
-  integrands G(x, y) and F(x) are smooth except where the line's root structure changes
-  (root count: tangencies, edges; or a crease is crossed: the root's normal jumps). Those
-  points are found by sampling a uniform grid of ``n`` + 1 points and bisecting every interval
-  whose end signatures differ (count change -> located to 1e-14 of the box; a normal jump that
-  survives halving -> a crease, located to 1e-10). Each smooth piece [a, b] is mapped by
-  ``t = a + (b - a)(3u^2 - 2u^3)``, which turns square-root endpoint behaviour (tangency) into
-  an analytic integrand, and integrated by q-point Gauss-Legendre panels in u, each compared
-  with its two halves; a panel whose difference exceeds the tolerance is split. For x, the
-  signature is the number of y-breakpoints of the slice.
-- **Error estimate.** Sum over accepted panels of |coarse - fine| (the reported value is the
-  fine one), the inner levels' estimates integrated through, plus (jump bound) x (location
-  tolerance) for every located breakpoint. It is an estimate, not a proof.
+- **Cells.** The box is split into ``n`` cells per axis. For a 1-Lipschitz root (every leaf
+  1-Lipschitz; the certificate's second half) one evaluation at the centre decides a cell whose
+  half-diagonal is below ``|phi|``: wholly inside (its box moments are added exactly) or
+  outside. Other cells are *cut*.
+- **Height direction.** In a cut cell the height axis k is the largest component of grad phi
+  at the centre; u and v are the other two axes.
+- **Inner (k), exact.** Along a line (u, v, .) every root of phi in the cell is bracketed by
+  sign (steps of ``max(|phi|, hmin)`` for a 1-Lipschitz tree: ``|phi|`` proves the skipped
+  stretch has no root; a uniform ``hmin`` otherwise) and refined to round-off by the Illinois
+  method. The inside runs give the moments of 1, k, k^2 in closed form.
+- **Middle (v), breakpoints.** The line integrals are smooth in v except where the line's
+  *signature* changes: its number of roots, or the leaf active at a root (a crease; the
+  evaluator reports the active leaf). Signatures are sampled at 5 points across the cell and
+  every change is located by bisection to ~1e-13 of the cell; each smooth piece gets its own
+  Gauss-Legendre rule, so creases and the jumps of walls parallel to k cost no accuracy.
+- **Outer (u)** Gauss-Legendre across the cell.
+- **Error estimate and adaptivity.** Every cut cell is integrated with q = 5 and q = 7 points
+  per transverse axis; the reported value is the q = 7 one and |I7 - I5| its error estimate,
+  which over-estimates the q = 7 error wherever the rule converges. A cell whose estimate
+  exceeds ``tol * V_box * (d_cell / d_box)^2`` (a tolerance per unit of surface, since cut
+  cells tile a surface) is split into 8, down to ``MAX_DEPTH`` levels. The estimates of all
+  accepted cells add up to the reported error.
 
-All hot loops are ``@njit(cache=True)`` kernels over the flat program arrays; the work order is
-fixed, so results are bitwise reproducible.
+The work is parallel over the top-level cells, each writing its own row, and the rows are
+summed in a fixed order: results are bitwise identical at any thread count.
 """
 from __future__ import annotations
 
@@ -34,635 +35,500 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from . import kernels as K
 from .transforms import matrix_to_quat
 
-#: Max roots along one line; more raises (a pathological tree or a far too coarse box).
+#: Max roots along one line and breakpoints across one cell.
 MAX_ROOTS = 64
-#: Gauss-Legendre points per panel (the panel is checked against its two halves).
-GL_POINTS = 8
+MAX_BREAKS = 64
+#: Levels of refinement below the top cells.
+MAX_DEPTH = 8
+#: Signature probes across a cell (intervals).
+V_PROBES = 4
+#: Bisection steps locating a breakpoint of the inner integrand (2^-44 of the cell): it may
+#: jump there (a wall parallel to the height axis), so the location must be sharp.
+BREAK_STEPS = 44
+#: ... and of the outer integrand, which is continuous: an error quadratic in the location.
+U_BREAK_STEPS = 30
 
 # moment indices of the 10 raw moments (coordinates relative to the box centre)
 # 0: 1, 1: x, 2: y, 3: z, 4: xx, 5: yy, 6: zz, 7: xy, 8: xz, 9: yz
 
 
-# ---------------------------------------------------------------------- inner: a line in z
 @njit(cache=True)
-def _ev(ops, lk, lr, ob, oe, x, y, z, st):
-    return K.eval_point(ops, lk, lr, ob, oe, x, y, z, st)
+def _phi(ops, lk, lr, ob, oe, ak, u, v, t, iu, iv, st):
+    """phi at the point with coordinate t on axis ak and u, v on axes iu, iv."""
+    p0 = 0.0
+    p1 = 0.0
+    p2 = 0.0
+    if ak == 0:
+        p0 = t
+    elif ak == 1:
+        p1 = t
+    else:
+        p2 = t
+    if iu == 0:
+        p0 = u
+    elif iu == 1:
+        p1 = u
+    else:
+        p2 = u
+    if iv == 0:
+        p0 = v
+    elif iv == 1:
+        p1 = v
+    else:
+        p2 = v
+    return K.eval_point(ops, lk, lr, ob, oe, p0, p1, p2, st)[0]
 
 
 @njit(cache=True)
-def _refine_root(ops, lk, lr, ob, oe, x, y, a, fa, b, fb, tolz, st, out, k):
-    """Root of phi(x, y, .) in [a, b] (fa, fb of opposite inside-sign). Writes z and the
-    unit normal into out[k, 0:4]. Safeguarded Newton with bisection fallback."""
-    # secant start: for a distance field it is already close to the root
-    z = a - fa * (b - a) / (fb - fa)
-    if not (a < z < b):
-        z = 0.5 * (a + b)
-    g = 0.0
-    gx = 0.0
-    gy = 0.0
-    for _ in range(200):
-        f, gx, gy, g = _ev(ops, lk, lr, ob, oe, x, y, z, st)
-        if (f < 0.0) == (fa < 0.0):
-            a = z
-            fa = f
+def _refine(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, fa, b, fb, st):
+    """A root of phi in [a, b] (fa, fb of opposite signs) by the Illinois method.
+
+    Returns (root, active leaf at the root side nearest the root)."""
+    side = 0
+    leaf = -1.0
+    for it in range(200):
+        if b - a <= 4e-16 * (abs(a) + abs(b)) + 1e-300:
+            break
+        if it % 4 == 3:                      # a bisection now and then bounds the worst case
+            m = 0.5 * (a + b)
         else:
-            b = z
-            fb = f
-        if b - a <= tolz:
-            break
-        zn = z - f / g if g != 0.0 else 0.5 * (a + b)
-        # Newton only while it stays well inside the bracket; else bisect
-        if not (a < zn < b) or not (zn == zn):
-            zn = 0.5 * (a + b)
-        if abs(zn - z) <= 0.5 * tolz:
-            z = zn
-            break
-        z = zn
-    zr = 0.5 * (a + b) if b - a <= tolz else z
-    nn = math.sqrt(gx * gx + gy * gy + g * g)
-    if nn == 0.0:
-        nn = 1.0
-    out[k, 0] = zr
-    out[k, 1] = gx / nn
-    out[k, 2] = gy / nn
-    out[k, 3] = g / nn
-
-
-@njit(cache=True)
-def _extremum(ops, lk, lr, ob, oe, x, y, a, b, s, tolx, lip, st):
-    """Locate the extremum of phi(x, y, .) in [a, b] where s*dphi/dz goes - -> +; returns
-    (z, phi)."""
-    fa = abs(_ev(ops, lk, lr, ob, oe, x, y, a, st)[0])
-    fb = abs(_ev(ops, lk, lr, ob, oe, x, y, b, st)[0])
-    for _ in range(80):
-        # 1-Lipschitz: no zero in [a, b] once |fa| + |fb| > b - a
-        if lip and fa + fb > b - a:
-            break
-        m = 0.5 * (a + b)
-        f, gx, gy, gz = _ev(ops, lk, lr, ob, oe, x, y, m, st)
-        if (f < 0.0) != (s < 0.0):
-            return m, f
-        if s * gz < 0.0:
+            m = (a * fb - b * fa) / (fb - fa)
+            if not (a < m < b):
+                m = 0.5 * (a + b)
+        fm = _phi(ops, lk, lr, ob, oe, ak, u, v, m, iu, iv, st)
+        leaf = st[0, 4]
+        if fm == 0.0:
+            return m, leaf
+        if (fm < 0.0) == (fa < 0.0):
             a = m
-            fa = abs(f)
+            fa = fm
+            if side == -1:
+                fb *= 0.5
+            side = -1
         else:
             b = m
-            fb = abs(f)
-        if b - a <= tolx:
-            break
-    m = 0.5 * (a + b)
-    f, gx, gy, gz = _ev(ops, lk, lr, ob, oe, x, y, m, st)
-    return m, f
+            fb = fm
+            if side == 1:
+                fa *= 0.5
+            side = 1
+    r = 0.5 * (a + b)
+    _phi(ops, lk, lr, ob, oe, ak, u, v, r, iu, iv, st)
+    return r, st[0, 4]
 
 
 @njit(cache=True)
-def _line(ops, lk, lr, ob, oe, x, y, zlo, zhi, hmin, lip, tolz, st, roots):
-    """All sign changes of phi along (x, y, zlo..zhi); roots[k] = (z, nx, ny, nz).
-
-    Returns the number of roots (a leading negative sample counts as a root at zlo)."""
+def _line(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, b, lip, hmin, st, roots, leaves):
+    """Roots of phi along axis ak over [a, b] at (u, v). Returns (count, starts_inside);
+    count = -1 if more than MAX_ROOTS."""
+    t = a
+    f = _phi(ops, lk, lr, ob, oe, ak, u, v, t, iu, iv, st)
+    inside0 = f < 0.0
     nr = 0
-    z0 = zlo
-    f0, gx, gy, g0 = _ev(ops, lk, lr, ob, oe, x, y, z0, st)
-    if f0 < 0.0:
-        roots[0, 0] = zlo
-        roots[0, 1] = 0.0
-        roots[0, 2] = 0.0
-        roots[0, 3] = -1.0
-        nr = 1
-    while z0 < zhi:
+    while t < b:
         step = hmin
-        if lip and abs(f0) > step:
-            step = abs(f0)
-        z1 = z0 + step
-        if z1 > zhi:
-            z1 = zhi
-        f1, gx, gy, g1 = _ev(ops, lk, lr, ob, oe, x, y, z1, st)
-        if (f0 < 0.0) != (f1 < 0.0):
+        if lip and abs(f) > step:
+            step = abs(f)
+        t2 = t + step
+        if t2 > b:
+            t2 = b
+        f2 = _phi(ops, lk, lr, ob, oe, ak, u, v, t2, iu, iv, st)
+        if (f < 0.0) != (f2 < 0.0):
             if nr >= MAX_ROOTS:
-                return -1
-            _refine_root(ops, lk, lr, ob, oe, x, y, z0, f0, z1, f1, tolz, st, roots, nr)
+                return -1, inside0
+            r, lf = _refine(ops, lk, lr, ob, oe, ak, iu, iv, u, v, t, f, t2, f2, st)
+            roots[nr] = r
+            leaves[nr] = lf
             nr += 1
-        else:
-            s = 1.0 if f0 >= 0.0 else -1.0
-            # |phi| falls then rises inside the step and could reach zero: look at the extremum
-            reach = (abs(f0) + abs(f1) if lip else min(abs(f0), abs(f1))) < (z1 - z0)
-            if s * g0 < 0.0 and s * g1 > 0.0 and reach:
-                # a sliver thinner than ~1e6 tolz is below any moment we report
-                zm, fm = _extremum(ops, lk, lr, ob, oe, x, y, z0, z1, s, 1e6 * tolz, lip, st)
-                if (fm < 0.0) != (f0 < 0.0):
-                    if nr + 2 > MAX_ROOTS:
-                        return -1
-                    _refine_root(ops, lk, lr, ob, oe, x, y, z0, f0, zm, fm, tolz, st, roots, nr)
-                    _refine_root(ops, lk, lr, ob, oe, x, y, zm, fm, z1, f1, tolz, st, roots,
-                                 nr + 1)
-                    nr += 2
-        z0 = z1
-        f0 = f1
-        g0 = g1
-    if f0 < 0.0:
-        if nr >= MAX_ROOTS:
-            return -1
-        roots[nr, 0] = zhi
-        roots[nr, 1] = 0.0
-        roots[nr, 2] = 0.0
-        roots[nr, 3] = 1.0
-        nr += 1
-    return nr
+        t = t2
+        f = f2
+    return nr, inside0
 
 
 @njit(cache=True)
-def _z_moments(roots, nr, out):
-    """Closed-form moments of 1, z, z^2 over the inside runs [roots[0], roots[1]], ..."""
-    out[0] = 0.0
-    out[1] = 0.0
-    out[2] = 0.0
-    for k in range(0, nr - 1, 2):
-        a = roots[k, 0]
-        b = roots[k + 1, 0]
-        out[0] += b - a
-        out[1] += 0.5 * (b - a) * (b + a)
-        out[2] += (b - a) * (b * b + a * b + a * a) / 3.0
-
-
-# ---------------------------------------------------------------------- breakpoint search
-@njit(cache=True)
-def _normal_jump(nrm, i, j, nr):
-    """max over roots of |n_i - n_j| (roots matched in order)."""
-    jm = 0.0
-    for r in range(nr):
-        dx = nrm[i, 4 * r + 1] - nrm[j, 4 * r + 1]
-        dy = nrm[i, 4 * r + 2] - nrm[j, 4 * r + 2]
-        dz = nrm[i, 4 * r + 3] - nrm[j, 4 * r + 3]
-        d = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if d > jm:
-            jm = d
-    return jm
-
-
-#: a normal jump above this between neighbouring samples is examined as a possible crease
-KINK_TAU = 0.05
-#: a crease keeps >= this fraction of its parent's jump in one half; smooth bending halves it
-KINK_KEEP = 0.8
+def _signature(nr, inside0, leaves):
+    h = np.int64(nr * 2 + (1 if inside0 else 0))
+    for i in range(nr):
+        h = (h * np.int64(1000003) + np.int64(leaves[i]) + 1) % np.int64(4611686018427387903)
+    return h
 
 
 @njit(cache=True)
-def _store_line(ops, lk, lr, ob, oe, x, y, zlo, zhi, hmin, lip, tolz, st, roots, ys, cnt, nrm,
-                ns):
-    """Solve the line at (x, y), append its signature as sample ``ns``; return new arrays."""
-    if ns >= ys.shape[0]:
-        cap = 2 * ys.shape[0]
-        ys2 = np.empty(cap)
-        ys2[:ns] = ys[:ns]
-        cnt2 = np.empty(cap, np.int64)
-        cnt2[:ns] = cnt[:ns]
-        nrm2 = np.empty((cap, nrm.shape[1]))
-        nrm2[:ns] = nrm[:ns]
-        ys, cnt, nrm = ys2, cnt2, nrm2
-    nr = _line(ops, lk, lr, ob, oe, x, y, zlo, zhi, hmin, lip, tolz, st, roots)
-    ys[ns] = y
-    cnt[ns] = nr
-    for r in range(max(nr, 0)):
-        for c in range(4):
-            nrm[ns, 4 * r + c] = roots[r, c]
-    return ys, cnt, nrm
+def _accumulate(acc, w, iu, iv, ak, u, v, a, b, nr, inside0, roots, cen):
+    """Add w * (moments of the inside runs of the line) to acc (10 raw moments)."""
+    m0 = 0.0
+    m1 = 0.0
+    m2 = 0.0
+    ins = inside0
+    lo = a
+    for i in range(nr + 1):
+        hi = roots[i] if i < nr else b
+        if ins:
+            x0 = lo - cen[ak]
+            x1 = hi - cen[ak]
+            m0 += x1 - x0
+            m1 += 0.5 * (x1 * x1 - x0 * x0)
+            m2 += (x1 * x1 * x1 - x0 * x0 * x0) / 3.0
+        ins = not ins
+        lo = hi
+    if m0 == 0.0:
+        return
+    uu = u - cen[iu]
+    vv = v - cen[iv]
+    acc[0] += w * m0
+    acc[1 + iu] += w * uu * m0
+    acc[1 + iv] += w * vv * m0
+    acc[1 + ak] += w * m1
+    acc[4 + iu] += w * uu * uu * m0
+    acc[4 + iv] += w * vv * vv * m0
+    acc[4 + ak] += w * m2
+    # off-diagonal slots: 7 xy, 8 xz, 9 yz
+    acc[_pair(iu, iv)] += w * uu * vv * m0
+    acc[_pair(iu, ak)] += w * uu * m1
+    acc[_pair(iv, ak)] += w * vv * m1
+
+
+@njit(cache=True, inline="always")
+def _pair(i, j):
+    s = i + j
+    if s == 1:
+        return 7
+    if s == 2:
+        return 8
+    return 9
 
 
 @njit(cache=True)
-def _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount, dkink, st,
-                  roots):
-    """Breakpoints in y of the slice at x: sorted array including lo[1] and hi[1].
-
-    Returns (breaks, ok) with ok False if a line had more than MAX_ROOTS roots."""
-    cap = 4 * (n + 1) + 64
-    ys = np.empty(cap)
-    cnt = np.empty(cap, np.int64)
-    nrm = np.empty((cap, 4 * MAX_ROOTS))
-    ns = 0
-    ylo = lo[1]
-    yhi = hi[1]
-    for i in range(n + 1):
-        y = ylo + (yhi - ylo) * i / n
-        ys, cnt, nrm = _store_line(ops, lk, lr, ob, oe, x, y, lo[2], hi[2], hmin, lip, tolz,
-                                   st, roots, ys, cnt, nrm, ns)
-        ns += 1
-    ok = True
-    for i in range(n + 1):
-        if cnt[i] < 0:
-            ok = False
-    brk = [ylo]
-    # stack of (ia, ib, parent jump)
-    sa = [0]
-    sb = [0]
-    sj = [0.0]
-    sa.pop()
-    sb.pop()
-    sj.pop()
-    for i in range(n, 0, -1):
-        sa.append(i - 1)
-        sb.append(i)
-        sj.append(np.inf)
-    while len(sa) > 0:
-        ia = sa.pop()
-        ib = sb.pop()
-        pj = sj.pop()
-        a = ys[ia]
-        b = ys[ib]
-        count_ev = cnt[ia] != cnt[ib]
-        jump = 0.0
-        kink_ev = False
-        if not count_ev and cnt[ia] > 0:
-            jump = _normal_jump(nrm, ia, ib, cnt[ia])
-            kink_ev = jump > KINK_TAU and (pj == np.inf or jump > KINK_KEEP * pj)
-        if not count_ev and not kink_ev:
-            continue
-        if (count_ev and b - a <= dcount) or (not count_ev and b - a <= dkink):
-            brk.append(0.5 * (a + b))
-            continue
-        m = 0.5 * (a + b)
-        ys, cnt, nrm = _store_line(ops, lk, lr, ob, oe, x, m, lo[2], hi[2], hmin, lip, tolz,
-                                   st, roots, ys, cnt, nrm, ns)
-        if cnt[ns] < 0:
-            ok = False
-        im = ns
-        ns += 1
-        nj = jump if kink_ev else np.inf
-        sa.append(im)
-        sb.append(ib)
-        sj.append(nj)
-        sa.append(ia)
-        sb.append(im)
-        sj.append(nj)
-    brk.append(yhi)
-    out = np.sort(np.array(brk))
-    # merge coincident breakpoints
-    keep = [out[0]]
-    for i in range(1, len(out)):
-        if out[i] - keep[-1] > dcount:
-            keep.append(out[i])
-        elif i == len(out) - 1:
-            keep[-1] = out[i]
-    return np.array(keep), ok, ns
-
-
-# ---------------------------------------------------------------------- adaptive pieces
-@njit(cache=True)
-def _smooth_map(a, b, u):
-    """t(u) = a + (b - a)(3u^2 - 2u^3) and dt/du: square-root ends become analytic."""
-    return a + (b - a) * u * u * (3.0 - 2.0 * u), (b - a) * 6.0 * u * (1.0 - u)
-
-
-@njit(cache=True)
-def _y_integrand(ops, lk, lr, ob, oe, x, y, cy, zlo, zhi, hmin, lip, tolz, st, roots, zm, out):
-    """The 6 slice moments' integrand at (x, y): m0, y m0, y^2 m0, m1, y m1, m2 (centred)."""
-    nr = _line(ops, lk, lr, ob, oe, x, y, zlo, zhi, hmin, lip, tolz, st, roots)
+def _breaks(ops, lk, lr, ob, oe, ak, iu, iv, u, v0, v1, a, b, lip, hmin, st, roots, leaves,
+            brk):
+    """Breakpoints of the v-integrand at outer coordinate u: fills brk[0..m-1] with v0, the
+    located signature changes, v1. Returns (m, hash of the pieces' signature sequence);
+    m = -1 on overflow. Changes are located to 2^-BREAK_STEPS of the probe interval."""
+    m = 0
+    brk[m] = v0
+    m += 1
+    nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, v0, a, b, lip, hmin, st, roots, leaves)
     if nr < 0:
+        return -1, 0
+    sl = _signature(nr, ins, leaves)
+    seq = sl
+    vl = v0
+    for j in range(1, V_PROBES + 1):
+        vr = v0 + (v1 - v0) * j / V_PROBES
+        nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, vr, a, b, lip, hmin, st, roots,
+                        leaves)
+        if nr < 0:
+            return -1, 0
+        sr = _signature(nr, ins, leaves)
+        x0 = vl
+        s0 = sl
+        while s0 != sr:               # every change in (vl, vr], left to right
+            lo_ = x0
+            hi_ = vr
+            for _ in range(BREAK_STEPS):
+                mid = 0.5 * (lo_ + hi_)
+                nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, mid, a, b, lip, hmin, st,
+                                roots, leaves)
+                if nr < 0:
+                    return -1, 0
+                if _signature(nr, ins, leaves) == s0:
+                    lo_ = mid
+                else:
+                    hi_ = mid
+            if m >= MAX_BREAKS - 1:
+                return -1, 0
+            brk[m] = hi_
+            m += 1
+            x0 = hi_
+            nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, x0, a, b, lip, hmin, st, roots,
+                            leaves)
+            if nr < 0:
+                return -1, 0
+            s0 = _signature(nr, ins, leaves)
+            seq = (seq * np.int64(1000033) + s0) % np.int64(4611686018427387903)
+            if hi_ >= vr:
+                break
+        vl = vr
+        sl = sr
+    brk[m] = v1
+    m += 1
+    return m, seq
+
+
+@njit(cache=True, inline="always")
+def _piece_node(p0, p1, x, smooth):
+    """(point, weight factor) of Gauss node x in [0, 1] on piece [p0, p1]. With ``smooth``,
+    t = p0 + (p1 - p0)(3x^2 - 2x^3): square-root behaviour at a breakpoint becomes analytic."""
+    if smooth:
+        return p0 + (p1 - p0) * x * x * (3.0 - 2.0 * x), 6.0 * (p1 - p0) * x * (1.0 - x)
+    return p0 + (p1 - p0) * x, p1 - p0
+
+
+@njit(cache=True)
+def _cell_rules(ops, lk, lr, ob, oe, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st,
+                roots, leaves, brk, ubrk, a5, a7):
+    """Integrate the cut cell [clo, chi] with 5- and 7-point Gauss-Legendre rules on every
+    smooth piece in u and v (shared u-breakpoints). Returns False on an overflow."""
+    a = clo[ak]
+    b = chi[ak]
+    u0 = clo[iu]
+    u1 = chi[iu]
+    v0 = clo[iv]
+    v1 = chi[iv]
+    hmin = (b - a) / 64.0
+    # u-breakpoints: where the sequence of v-piece signatures changes
+    mu = 0
+    ubrk[mu] = u0
+    mu += 1
+    m, hl = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, u0, v0, v1, a, b, lip, hmin, st, roots,
+                    leaves, brk)
+    if m < 0:
         return False
-    _z_moments(roots, nr, zm)
-    yc = y - cy
-    out[0] = zm[0]
-    out[1] = yc * zm[0]
-    out[2] = yc * yc * zm[0]
-    out[3] = zm[1]
-    out[4] = yc * zm[1]
-    out[5] = zm[2]
+    ul = u0
+    for j in range(1, V_PROBES + 1):
+        ur = u0 + (u1 - u0) * j / V_PROBES
+        m, hr = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, ur, v0, v1, a, b, lip, hmin, st,
+                        roots, leaves, brk)
+        if m < 0:
+            return False
+        x0 = ul
+        h0 = hl
+        while h0 != hr:
+            lo_ = x0
+            hi_ = ur
+            for _ in range(U_BREAK_STEPS):
+                mid = 0.5 * (lo_ + hi_)
+                m, hm = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, mid, v0, v1, a, b, lip, hmin,
+                                st, roots, leaves, brk)
+                if m < 0:
+                    return False
+                if hm == h0:
+                    lo_ = mid
+                else:
+                    hi_ = mid
+            if mu >= MAX_BREAKS - 1:
+                return False
+            ubrk[mu] = hi_
+            mu += 1
+            x0 = hi_
+            m, h0 = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, x0, v0, v1, a, b, lip, hmin, st,
+                            roots, leaves, brk)
+            if m < 0:
+                return False
+            if hi_ >= ur:
+                break
+        ul = ur
+        hl = hr
+    ubrk[mu] = u1
+    mu += 1
+    for rule in range(2):
+        gx = g5x if rule == 0 else g7x
+        gw = g5w if rule == 0 else g7w
+        acc = a5 if rule == 0 else a7
+        q = gx.shape[0]
+        for pu in range(mu - 1):
+            pu0 = ubrk[pu]
+            pu1 = ubrk[pu + 1]
+            if pu1 <= pu0:
+                continue
+            smooth_u = pu > 0 or pu < mu - 2
+            for i in range(q):
+                u, wu = _piece_node(pu0, pu1, gx[i], smooth_u)
+                wu *= gw[i]
+                m, hv = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, u, v0, v1, a, b, lip, hmin,
+                                st, roots, leaves, brk)
+                if m < 0:
+                    return False
+                for pc in range(m - 1):
+                    p0 = brk[pc]
+                    p1 = brk[pc + 1]
+                    if p1 <= p0:
+                        continue
+                    smooth_v = pc > 0 or pc < m - 2
+                    for jv in range(q):
+                        v, wv = _piece_node(p0, p1, gx[jv], smooth_v)
+                        nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, b, lip,
+                                        hmin, st, roots, leaves)
+                        if nr < 0:
+                            return False
+                        _accumulate(acc, wu * wv * gw[jv], iu, iv, ak, u, v, a, b, nr, ins,
+                                    roots, cen)
     return True
 
 
 @njit(cache=True)
-def _slice(ops, lk, lr, ob, oe, x, lo, hi, cen, n, hmin, lip, tolz, dcount, dkink, tol, gx,
-           gw, st, roots, res):
-    """Integrate the slice at x over (y, z); res[0:6] moments (z relative to cen[2] handled by
-    the caller through shifted z limits), res[6] error estimate, res[7] breakpoint count.
-    Returns False on failure (too many roots)."""
-    brk, ok, _ = _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount,
-                               dkink, st, roots)
-    q = gx.shape[0]
-    for c in range(8):
-        res[c] = 0.0
-    zm = np.empty(3)
-    val = np.empty(6)
-    coarse = np.empty(6)
-    fine = np.empty(6)
-    half = np.empty(6)
-    scale = np.empty(6)
-    ey = 0.5 * (hi[1] - lo[1])
-    ez = 0.5 * (hi[2] - lo[2])
-    scale[0] = ez
-    scale[1] = ez * ey
-    scale[2] = ez * ey * ey
-    scale[3] = ez * ez
-    scale[4] = ez * ez * ey
-    scale[5] = ez * ez * ez
-    # a located count breakpoint may hide a jump of at most 2*ez in m0, over dcount
-    res[6] += (len(brk) - 2) * dcount * 2.0 * ez * 4.0
-    for p in range(len(brk) - 1):
-        a = brk[p]
-        b = brk[p + 1]
-        # explicit stack of u-panels; each carries its coarse value
-        pu0 = [0.0]
-        pu1 = [1.0]
-        pco = [np.zeros(6)]
-        pfl = [False]
-        while len(pu0) > 0:
-            u0 = pu0.pop()
-            u1 = pu1.pop()
-            cv = pco.pop()
-            have = pfl.pop()
-            if have:
-                for c in range(6):
-                    coarse[c] = cv[c]
-            else:
-                for c in range(6):
-                    coarse[c] = 0.0
-                for k in range(q):
-                    u = u0 + (u1 - u0) * gx[k]
-                    t, dt = _smooth_map(a, b, u)
-                    if not _y_integrand(ops, lk, lr, ob, oe, x, t, cen[1], lo[2], hi[2], hmin,
-                                        lip, tolz, st, roots, zm, val):
-                        ok = False
-                    w = gw[k] * (u1 - u0) * dt
-                    for c in range(6):
-                        coarse[c] += w * val[c]
-            hl = np.zeros(6)
-            hr = np.zeros(6)
-            um = 0.5 * (u0 + u1)
-            for side in range(2):
-                v0 = u0 if side == 0 else um
-                v1 = um if side == 0 else u1
-                for c in range(6):
-                    half[c] = 0.0
-                for k in range(q):
-                    u = v0 + (v1 - v0) * gx[k]
-                    t, dt = _smooth_map(a, b, u)
-                    if not _y_integrand(ops, lk, lr, ob, oe, x, t, cen[1], lo[2], hi[2], hmin,
-                                        lip, tolz, st, roots, zm, val):
-                        ok = False
-                    w = gw[k] * (v1 - v0) * dt
-                    for c in range(6):
-                        half[c] += w * val[c]
-                for c in range(6):
-                    if side == 0:
-                        hl[c] = half[c]
-                    else:
-                        hr[c] = half[c]
-            err = 0.0
-            for c in range(6):
-                fine[c] = hl[c] + hr[c]
-                e = abs(fine[c] - coarse[c]) / scale[c]
-                if e > err:
-                    err = e
-            width = (b - a) * (u1 - u0)
-            if err <= tol * width / (hi[1] - lo[1]) or u1 - u0 < 1e-12:
-                for c in range(6):
-                    res[c] += fine[c]
-                res[6] += err * scale[0]
-            else:
-                pu0.append(um)
-                pu1.append(u1)
-                pco.append(hr)
-                pfl.append(True)
-                pu0.append(u0)
-                pu1.append(um)
-                pco.append(hl)
-                pfl.append(True)
-    res[7] = len(brk)
-    return ok
+def _axis_order(gx, gy, gz):
+    """Axes by decreasing |grad phi|: (height k, inner v, outer u).
+
+    The height axis makes the surface a graph over the transverse face. Where the surface
+    meets the cell's k-faces it traces curves whose normal is roughly the transverse part of
+    grad phi; making the larger transverse component the inner axis keeps those curves graphs
+    over the outer axis, so the outer integrand stays smooth (Saye's choice, one level down).
+    """
+    a0 = abs(gx)
+    a1 = abs(gy)
+    a2 = abs(gz)
+    k = 0
+    if a1 > a0:
+        k = 1
+    if a2 > max(a0, a1):
+        k = 2
+    if k == 0:
+        return (0, 1, 2) if a1 >= a2 else (0, 2, 1)
+    if k == 1:
+        return (1, 0, 2) if a0 >= a2 else (1, 2, 0)
+    return (2, 0, 1) if a0 >= a1 else (2, 1, 0)
 
 
 @njit(cache=True)
-def _slice_sig(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount, dkink, st, roots):
-    brk, ok, _ = _slice_breaks(ops, lk, lr, ob, oe, x, lo, hi, n, hmin, lip, tolz, dcount,
-                               dkink, st, roots)
-    return len(brk) if ok else -1
+def _box_moments(acc, clo, chi, cen):
+    """Add the exact raw moments of the full box [clo, chi] (relative to cen)."""
+    h0 = chi[0] - clo[0]
+    h1 = chi[1] - clo[1]
+    h2 = chi[2] - clo[2]
+    vol = h0 * h1 * h2
+    c0 = 0.5 * (clo[0] + chi[0]) - cen[0]
+    c1 = 0.5 * (clo[1] + chi[1]) - cen[1]
+    c2 = 0.5 * (clo[2] + chi[2]) - cen[2]
+    acc[0] += vol
+    acc[1] += vol * c0
+    acc[2] += vol * c1
+    acc[3] += vol * c2
+    acc[4] += vol * (c0 * c0 + h0 * h0 / 12.0)
+    acc[5] += vol * (c1 * c1 + h1 * h1 / 12.0)
+    acc[6] += vol * (c2 * c2 + h2 * h2 / 12.0)
+    acc[7] += vol * c0 * c1
+    acc[8] += vol * c0 * c2
+    acc[9] += vol * c1 * c2
 
 
 @njit(cache=True)
-def _x_integrand(ops, lk, lr, ob, oe, x, lo, hi, cen, n, hmin, lip, tolz, dcount, dkink, tol,
-                 gx, gw, st, roots, sres, out):
-    """10 raw moments' integrand at x (centred) and the slice's error estimate in out[10]."""
-    ok = _slice(ops, lk, lr, ob, oe, x, lo, hi, cen, n, hmin, lip, tolz, dcount, dkink, tol, gx,
-                gw, st, roots, sres)
-    xc = x - cen[0]
-    # sres (y centred, z raw): m0, y m0, y2 m0, z1, y z1, z2 ; shift z to centred
-    cz = cen[2]
-    m0 = sres[0]
-    ym0 = sres[1]
-    yym0 = sres[2]
-    z1 = sres[3] - cz * m0
-    yz1 = sres[4] - cz * ym0
-    z2 = sres[5] - 2.0 * cz * sres[3] + cz * cz * m0
-    out[0] = m0
-    out[1] = xc * m0
-    out[2] = ym0
-    out[3] = z1
-    out[4] = xc * xc * m0
-    out[5] = yym0
-    out[6] = z2
-    out[7] = xc * ym0
-    out[8] = xc * z1
-    out[9] = yz1
-    out[10] = sres[6]
-    return ok
-
-
-@njit(cache=True)
-def integrate_body(ops, lk, lr, ob, oe, lo, hi, n, lip, tol):
-    """Raw moments (10,) about the box centre, their error estimates (10,), and diagnostics
-    (evaluations are not counted; (pieces, panels, x-breakpoints, ok))."""
-    st = np.empty((K.MAX_STACK, 4))
-    roots = np.empty((MAX_ROOTS + 2, 4))
-    cen = 0.5 * (lo + hi)
-    ext = np.max(hi - lo)
-    hmin = np.min(hi - lo) / (2.0 * n)
-    tolz = 1e-15 * ext
-    dcount = 1e-14 * ext
-    dkink = 1e-10 * ext
-    q = GL_POINTS
-    gx, gw = _gauss(q)
-    sres = np.empty(8)
-    # x signatures on the coarse grid, then bisection to breakpoints
-    xs = [lo[0] + (hi[0] - lo[0]) * i / n for i in range(n + 1)]
-    sg = [_slice_sig(ops, lk, lr, ob, oe, xs[i], lo, hi, n, hmin, lip, tolz, dcount, dkink, st,
-                     roots) for i in range(n + 1)]
-    ok = True
-    for v in sg:
-        if v < 0:
-            ok = False
-    brk = [lo[0]]
-    sa = [0.0]
-    sb = [0.0]
-    fa = [0]
-    fb = [0]
-    sa.pop()
-    sb.pop()
-    fa.pop()
-    fb.pop()
-    for i in range(n, 0, -1):
-        if sg[i - 1] != sg[i]:
-            sa.append(xs[i - 1])
-            sb.append(xs[i])
-            fa.append(sg[i - 1])
-            fb.append(sg[i])
-    while len(sa) > 0:
-        a = sa.pop()
-        b = sb.pop()
-        ga = fa.pop()
-        gb = fb.pop()
-        if b - a <= dcount:
-            brk.append(0.5 * (a + b))
+def _top_cell(ops, lk, lr, ob, oe, clo0, chi0, lip, tol_area, g5x, g5w, g7x, g7w, cen, mom,
+              err, stats):
+    """Integrate one top-level cell adaptively; adds into mom/err (10,), stats (4,)."""
+    st = np.empty((K.MAX_STACK, K.STACK_COLS))
+    roots = np.empty(MAX_ROOTS)
+    leaves = np.empty(MAX_ROOTS)
+    brk = np.empty(MAX_BREAKS)
+    ubrk = np.empty(MAX_BREAKS)
+    a5 = np.zeros(10)
+    a7 = np.zeros(10)
+    # explicit stack of cells: lo (3), hi (3), depth
+    cells = np.empty((8 * MAX_DEPTH + 8, 7))
+    cells[0, 0:3] = clo0
+    cells[0, 3:6] = chi0
+    cells[0, 6] = 0.0
+    top = 1
+    clo = np.empty(3)
+    chi = np.empty(3)
+    while top > 0:
+        top -= 1
+        for d in range(3):
+            clo[d] = cells[top, d]
+            chi[d] = cells[top, 3 + d]
+        depth = int(cells[top, 6])
+        stats[0] += 1.0
+        cx = 0.5 * (clo[0] + chi[0])
+        cy = 0.5 * (clo[1] + chi[1])
+        cz = 0.5 * (clo[2] + chi[2])
+        f, gx_, gy_, gz_ = K.eval_point(ops, lk, lr, ob, oe, cx, cy, cz, st)
+        hd = 0.5 * math.sqrt((chi[0] - clo[0]) ** 2 + (chi[1] - clo[1]) ** 2
+                             + (chi[2] - clo[2]) ** 2)
+        if lip and f >= hd:
             continue
-        m = 0.5 * (a + b)
-        gm = _slice_sig(ops, lk, lr, ob, oe, m, lo, hi, n, hmin, lip, tolz, dcount, dkink, st,
-                        roots)
-        if gm < 0:
-            ok = False
-        if gm != gb:
-            sa.append(m)
-            sb.append(b)
-            fa.append(gm)
-            fb.append(gb)
-        if gm != ga:
-            sa.append(a)
-            sb.append(m)
-            fa.append(ga)
-            fb.append(gm)
-    brk.append(hi[0])
-    xb = np.sort(np.array(brk))
-    keep = [xb[0]]
-    for i in range(1, len(xb)):
-        if xb[i] - keep[-1] > dcount:
-            keep.append(xb[i])
-        elif i == len(xb) - 1:
-            keep[-1] = xb[i]
+        if lip and f <= -hd:
+            _box_moments(mom, clo, chi, cen)
+            continue
+        ak, iv, iu = _axis_order(gx_, gy_, gz_)
+        a5[:] = 0.0
+        a7[:] = 0.0
+        ok = _cell_rules(ops, lk, lr, ob, oe, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip,
+                         cen, st, roots, leaves, brk, ubrk, a5, a7)
+        if not ok:
+            stats[3] = 1.0
+            return
+        est = 0.0
+        for m in range(10):
+            e = abs(a7[m] - a5[m])
+            if e > est:
+                est = e
+        # tolerance per unit of surface: (cell half-diagonal)^2 scaled
+        if est <= tol_area * hd * hd or depth >= MAX_DEPTH:
+            if depth >= MAX_DEPTH and est > tol_area * hd * hd:
+                stats[2] += 1.0
+            for m in range(10):
+                mom[m] += a7[m]
+                err[m] += abs(a7[m] - a5[m])
+            if depth > stats[1]:
+                stats[1] = depth
+            continue
+        # split into 8 children, pushed in a fixed order
+        for c in range(8):
+            for d in range(3):
+                mid = 0.5 * (clo[d] + chi[d])
+                if (c >> d) & 1:
+                    cells[top, d] = mid
+                    cells[top, 3 + d] = chi[d]
+                else:
+                    cells[top, d] = clo[d]
+                    cells[top, 3 + d] = mid
+            cells[top, 6] = depth + 1
+            top += 1
+    return
+
+
+@njit(cache=True, parallel=True)
+def integrate_body(ops, lk, lr, ob, oe, lo, hi, n, lip, tol, g5x, g5w, g7x, g7w):
+    """Raw moments (10,) relative to the box centre, their error estimates (10,), and
+    diagnostics (cells visited, deepest level, cells stopped at MAX_DEPTH, overflow flag)."""
+    cen = 0.5 * (lo + hi)
+    ncell = n * n * n
+    rows = np.zeros((ncell, 10))
+    erows = np.zeros((ncell, 10))
+    srows = np.zeros((ncell, 4))
+    h = (hi - lo) / n
+    box_vol = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2])
+    box_hd2 = 0.25 * ((hi[0] - lo[0]) ** 2 + (hi[1] - lo[1]) ** 2 + (hi[2] - lo[2]) ** 2)
+    tol_area = tol * box_vol / box_hd2
+    for c in prange(ncell):
+        i = c % n
+        j = (c // n) % n
+        k = c // (n * n)
+        clo = np.empty(3)
+        chi = np.empty(3)
+        clo[0] = lo[0] + i * h[0]
+        clo[1] = lo[1] + j * h[1]
+        clo[2] = lo[2] + k * h[2]
+        chi[0] = hi[0] if i == n - 1 else lo[0] + (i + 1) * h[0]
+        chi[1] = hi[1] if j == n - 1 else lo[1] + (j + 1) * h[1]
+        chi[2] = hi[2] if k == n - 1 else lo[2] + (k + 1) * h[2]
+        _top_cell(ops, lk, lr, ob, oe, clo, chi, lip, tol_area, g5x, g5w, g7x, g7w, cen,
+                  rows[c], erows[c], srows[c])
     mom = np.zeros(10)
     err = np.zeros(10)
-    val = np.empty(11)
-    coarse = np.empty(11)
-    half = np.empty(11)
-    ex = 0.5 * (hi[0] - lo[0])
-    ey = 0.5 * (hi[1] - lo[1])
-    ez = 0.5 * (hi[2] - lo[2])
-    vol_box = 8.0 * ex * ey * ez
-    scale = np.empty(10)
-    scale[0] = vol_box
-    scale[1] = vol_box * ex
-    scale[2] = vol_box * ey
-    scale[3] = vol_box * ez
-    scale[4] = vol_box * ex * ex
-    scale[5] = vol_box * ey * ey
-    scale[6] = vol_box * ez * ez
-    scale[7] = vol_box * ex * ey
-    scale[8] = vol_box * ex * ez
-    scale[9] = vol_box * ey * ez
-    # a located x breakpoint may hide a jump of F of at most the box's cross-section
-    loc = (len(keep) - 2) * dcount * 8.0 * ey * ez
-    panels = 0
-    for p in range(len(keep) - 1):
-        a = keep[p]
-        b = keep[p + 1]
-        pu0 = [0.0]
-        pu1 = [1.0]
-        pco = [np.zeros(11)]
-        pfl = [False]
-        while len(pu0) > 0:
-            u0 = pu0.pop()
-            u1 = pu1.pop()
-            cv = pco.pop()
-            have = pfl.pop()
-            if have:
-                for c in range(11):
-                    coarse[c] = cv[c]
-            else:
-                for c in range(11):
-                    coarse[c] = 0.0
-                for k in range(q):
-                    u = u0 + (u1 - u0) * gx[k]
-                    t, dt = _smooth_map(a, b, u)
-                    if not _x_integrand(ops, lk, lr, ob, oe, t, lo, hi, cen, n, hmin, lip, tolz,
-                                        dcount, dkink, tol, gx, gw, st, roots, sres, val):
-                        ok = False
-                    w = gw[k] * (u1 - u0) * dt
-                    for c in range(11):
-                        coarse[c] += w * val[c]
-            hl = np.zeros(11)
-            hr = np.zeros(11)
-            um = 0.5 * (u0 + u1)
-            for side in range(2):
-                v0 = u0 if side == 0 else um
-                v1 = um if side == 0 else u1
-                for c in range(11):
-                    half[c] = 0.0
-                for k in range(q):
-                    u = v0 + (v1 - v0) * gx[k]
-                    t, dt = _smooth_map(a, b, u)
-                    if not _x_integrand(ops, lk, lr, ob, oe, t, lo, hi, cen, n, hmin, lip, tolz,
-                                        dcount, dkink, tol, gx, gw, st, roots, sres, val):
-                        ok = False
-                    w = gw[k] * (v1 - v0) * dt
-                    for c in range(11):
-                        half[c] += w * val[c]
-                if side == 0:
-                    hl[:] = half
-                else:
-                    hr[:] = half
-            e_rel = 0.0
-            for c in range(10):
-                e = abs(hl[c] + hr[c] - coarse[c]) / scale[c]
-                if e > e_rel:
-                    e_rel = e
-            width = (b - a) * (u1 - u0)
-            if e_rel <= tol * width / (hi[0] - lo[0]) or u1 - u0 < 1e-12:
-                panels += 1
-                for c in range(10):
-                    mom[c] += hl[c] + hr[c]
-                    # panel difference + inner estimates (integrated, in m0 units)
-                    err[c] += (abs(hl[c] + hr[c] - coarse[c])
-                               + (hl[10] + hr[10]) * scale[c] / scale[0])
-            else:
-                pu0.append(um)
-                pu1.append(u1)
-                pco.append(hr)
-                pfl.append(True)
-                pu0.append(u0)
-                pu1.append(um)
-                pco.append(hl)
-                pfl.append(True)
-    for c in range(10):
-        err[c] += loc * scale[c] / scale[0]
-    diag = np.array([len(keep) - 1.0, float(panels), len(keep) - 2.0, 1.0 if ok else 0.0])
+    diag = np.zeros(4)
+    for c in range(ncell):
+        for m in range(10):
+            mom[m] += rows[c, m]
+            err[m] += erows[c, m]
+        diag[0] += srows[c, 0]
+        diag[1] = max(diag[1], srows[c, 1])
+        diag[2] += srows[c, 2]
+        diag[3] = max(diag[3], srows[c, 3])
     return mom, err, diag
 
 
-@njit(cache=True)
-def _gauss(q):
-    """Gauss-Legendre nodes on [0, 1] and weights (Newton on the Legendre recurrence)."""
-    x = np.empty(q)
-    w = np.empty(q)
-    for i in range(q):
-        t = math.cos(math.pi * (i + 0.75) / (q + 0.5))
-        for _ in range(100):
-            p0 = 1.0
-            p1 = t
-            for k in range(2, q + 1):
-                p0, p1 = p1, ((2 * k - 1) * t * p1 - (k - 1) * p0) / k
-            dp = q * (t * p1 - p0) / (t * t - 1.0)
-            dt = p1 / dp
-            t -= dt
-            if abs(dt) < 1e-16:
-                break
-        p0 = 1.0
-        p1 = t
-        for k in range(2, q + 1):
-            p0, p1 = p1, ((2 * k - 1) * t * p1 - (k - 1) * p0) / k
-        dp = q * (t * p1 - p0) / (t * t - 1.0)
-        x[i] = 0.5 * (1.0 - t)
-        w[i] = 1.0 / ((1.0 - t * t) * dp * dp)
-    return x, w
+def _gauss01(q):
+    x, w = np.polynomial.legendre.leggauss(q)
+    return np.ascontiguousarray(0.5 * (x + 1.0)), np.ascontiguousarray(0.5 * w)
+
+
+_G5 = _gauss01(5)
+_G7 = _gauss01(7)
 
 
 # ---------------------------------------------------------------------- Python API
@@ -767,7 +633,7 @@ def principal_axes(inertia, tol):
     return w, A
 
 
-def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-13):
+def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
     """Mass properties of the solid ``phi < 0`` of ``root`` inside the box [lo, hi].
 
     Parameters
@@ -775,13 +641,16 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-13):
     lo, hi : 3 finite numbers each, hi > lo; the box must contain the solid (phi >= 0 on its
         boundary, checked on a sample of the faces).
     density : > 0, mass per unit volume.
-    n : int >= 2, the resolution knob: initial samples per axis for locating breakpoints, and
-        the line step floor ``min(hi - lo) / (2n)``. Features thinner than that floor may be
-        missed by a line (for 1-Lipschitz trees the step is ``max(|phi|, floor)``).
-    tol : in (0, 1e-3], the panel acceptance tolerance relative to the box scale.
+    n : int in [2, 4096], top-level cells per axis. Cut cells refine adaptively below it;
+        a line is stepped at no more than 1/64 of its cell, so a feature thinner than that
+        along the line could be missed (for 1-Lipschitz trees the step is ``max(|phi|,
+        floor)``, and ``|phi|`` proves the skipped stretch empty).
+    tol : in (0, 1e-3], the relative accuracy asked of the volume; cells refine until their
+        error estimate is below ``tol * V_box * (d_cell / d_box)^2``.
 
-    Only the SIGN of phi enters the integrand (gradients steer Newton and detect creases), so
-    bound-only leaves (ellipsoid, superquadric, hollow_cylinder_shell) carry no bias.
+    Only the SIGN of phi enters the integrand (gradients choose the height direction), so
+    bound-only leaves (ellipsoid, superquadric, hollow_cylinder_shell) carry no bias; for them
+    no cell can be skipped, so they cost more.
     """
     lo_a, hi_a = _check_box(lo, hi)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= 4096:
@@ -796,10 +665,11 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-13):
     prog = builder.program(root)
     lip = bool(builder.is_lipschitz(root))
     mom, err, diag = integrate_body(prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin,
-                                    prog.op_end, lo_a, hi_a, int(n), lip, tol)
-    if diag[3] == 0.0:
-        raise ValueError(f"a line crossed the surface more than {MAX_ROOTS} times: the tree "
-                         "is pathological for this box")
+                                    prog.op_end, lo_a, hi_a, int(n), lip, tol, *_G5, *_G7)
+    if diag[3] != 0.0:
+        raise ValueError(f"a line crossed the surface more than {MAX_ROOTS} times, or a cell "
+                         f"had more than {MAX_BREAKS} breakpoints: the tree is pathological "
+                         "for this box (or n is far too small)")
     vol = float(mom[0])
     if not vol > 0.0:
         raise ValueError("empty solid: no point of the box has phi < 0")
@@ -822,8 +692,8 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-13):
     return BodyProperties(volume=vol, mass=density * vol, density=density, com=com,
                           inertia=inertia, principal=principal, axes=axes, quat=quat,
                           volume_error=e_v, moment_error=float(e_I),
-                          diagnostics={"x_pieces": int(diag[0]), "x_panels": int(diag[1]),
-                                       "x_breakpoints": int(diag[2]), "n": int(n),
+                          diagnostics={"cells": int(diag[0]), "max_depth": int(diag[1]),
+                                       "unconverged_cells": int(diag[2]), "n": int(n),
                                        "tol": tol, "lipschitz": lip})
 
 

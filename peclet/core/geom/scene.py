@@ -45,7 +45,7 @@ def _scene_brute(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, points, ou
     nimg = img_inst.shape[0]
     nchunk = (n + K.CHUNK - 1) // K.CHUNK
     for c in prange(nchunk):
-        st = np.empty((K.MAX_STACK, 4))
+        st = np.empty((K.MAX_STACK, K.STACK_COLS))
         for q in range(c * K.CHUNK, min(n, (c + 1) * K.CHUNK)):
             best = np.inf
             for i in range(nimg):
@@ -76,7 +76,7 @@ def _scene_pruned(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, always, o
     nchunk = (n + K.CHUNK - 1) // K.CHUNK
     nnode = bvh_child.shape[0]
     for c in prange(nchunk):
-        st = np.empty((K.MAX_STACK, 4))
+        st = np.empty((K.MAX_STACK, K.STACK_COLS))
         todo = np.empty(max(nnode, 1), dtype=np.int64)
         for q in range(c * K.CHUNK, min(n, (c + 1) * K.CHUNK)):
             x = points[q, 0]

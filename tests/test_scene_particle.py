@@ -1,0 +1,70 @@
+"""scene_particle.build on a small composed solid: frames, shell probes, radius, register."""
+import numpy as np
+import pytest
+
+from peclet.core import geom
+from peclet.core.geom.shell import count_for_spacing, even_spacing
+from peclet.dem import scene_particle
+
+
+class _FakeSim:
+    def __init__(self):
+        self.calls = []
+
+    def add_scene_shape(self, *args):
+        self.calls.append(args)
+        return 7
+
+
+def _solid(b):
+    s = b.add_leaf("sphere", [0.3], translation=[0.1, 0.0, 0.0])
+    return b.add_union(s, b.add_leaf("box", [0.25, 0.05, 0.15], translation=[-0.1, 0.1, 0.0]))
+
+
+def test_build_small_particle():
+    b = geom.SceneBuilder()
+    root = _solid(b)
+    sp = scene_particle.build(b, root, bounds=([-0.5] * 3, [0.5] * 3), n=8,
+                              shell_resolution=48, target_shell_points=300)
+    assert abs(len(sp.shell) - 300) <= 30
+    assert np.abs(b.eval_root(sp.home_root, sp.shell)).max() <= 1e-6
+    # home frame: com at the origin, inertia diagonal and ascending
+    q = b.body_properties(sp.home_root, [-0.7] * 3, [0.7] * 3, n=8, tol=1e-6)
+    # the body has creases (box edges, box-sphere seam): quadrature reaches ~1e-5 there
+    assert np.abs(q.com).max() <= 1e-5
+    off = q.inertia - np.diag(np.diag(q.inertia))
+    assert np.abs(off).max() <= 1e-5 * np.abs(q.inertia).max()
+    assert np.all(np.diff(sp.principal) >= 0)
+    assert np.allclose(sp.inv_inertia_unit, 1 / sp.principal)
+    # quat maps home to authoring coordinates: p_author = R p_home + com
+    Rm = geom.quat_to_matrix(sp.quat)
+    back = sp.shell @ Rm.T + sp.com
+    assert np.abs(b.eval_root(root, back)).max() <= 1e-6
+    # guaranteed radius contains every probe and random interior points
+    assert np.linalg.norm(sp.shell, axis=1).max() <= sp.bounding_radius
+    pts = np.random.default_rng(1).uniform(-0.7, 0.7, (20000, 3))
+    inside = pts[b.eval_root(sp.home_root, pts) < 0]
+    assert np.linalg.norm(inside, axis=1).max() <= sp.bounding_radius
+    # even spread: median NN spacing close to the hexagonal expectation
+    exp = even_spacing(sp.spacing["area"], len(sp.shell))
+    assert 0.6 * exp <= sp.spacing["median_spacing"] <= 1.2 * exp
+    sim = _FakeSim()
+    assert sp.register(sim) == 7
+    ni, nr, home, shell, rad = sim.calls[0]
+    assert home == sp.home_root and rad == sp.bounding_radius and shell is sp.shell
+    assert ni.shape[1] == 3 and nr.shape[1] == 16
+
+
+def test_count_for_spacing_inverts_even_spacing():
+    n = count_for_spacing(6.56, 0.040)
+    assert even_spacing(6.56, n) <= 0.040 < even_spacing(6.56, n - 1)
+
+
+def test_bad_arguments():
+    b = geom.SceneBuilder()
+    root = _solid(b)
+    with pytest.raises(ValueError, match="bounds"):
+        scene_particle.build(b, root, bounds=[0.5])
+    with pytest.raises(ValueError, match="target"):
+        scene_particle.build(b, root, bounds=([-0.5] * 3, [0.5] * 3), n=4,
+                             target_shell_points=0)
