@@ -92,8 +92,11 @@ def cell_quadrature(builder, root, lo, hi, n, bias=0.0):
     return float(v), com, np.sort(np.linalg.eigvalsh(inertia))
 
 
-def biased_cell_quadrature(builder, root, lo, hi, n):
-    """:func:`cell_quadrature` with a half-cell outward bias (the planted quadrature bug)."""
+def biased_cell_quadrature(builder, root, lo, hi, tol):
+    """:func:`cell_quadrature` with a half-cell outward bias (the planted quadrature bug), as a
+    ``measure`` for :func:`quadrature_convergence`: ``tol`` picks about tol^(-1/3) cells per
+    axis, the resolution an honest first-order cell rule would need."""
+    n = int(min(48, max(8, round(tol ** (-1.0 / 3.0)))))
     return cell_quadrature(builder, root, lo, hi, n, bias=0.5)
 
 

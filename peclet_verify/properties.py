@@ -331,11 +331,11 @@ def closed_form(recipe: TreeRecipe):
     return v * s ** 3, com, principal
 
 
-def reference_measure(builder, root, lo, hi, n):
-    """Mass properties by the reference engine's ``SceneBuilder.body_properties`` at
-    resolution ``n``: (volume, com, principal ascending). Raises AttributeError when the
-    engine has no quadrature yet."""
-    res = builder.body_properties(root, lo, hi, n=n)
+def reference_measure(builder, root, lo, hi, tol):
+    """Mass properties by the reference engine's ``SceneBuilder.body_properties`` asked for
+    relative accuracy ``tol`` (its refinement knob; 8 top cells per axis): (volume, com,
+    principal ascending). Raises AttributeError when the engine has no quadrature yet."""
+    res = builder.body_properties(root, lo, hi, n=8, tol=tol)
 
     def get(key, *alt):
         for k in (key,) + alt:
@@ -349,16 +349,17 @@ def reference_measure(builder, root, lo, hi, n):
 
 
 def quadrature_convergence(recipe: TreeRecipe, measure: Optional[Callable] = None,
-                           ns=(8, 16, 32), rtol: float = 1e-4,
-                           min_order: float = 1.5) -> PropertyResult:
-    """Quadrature of a one-leaf solid against its closed form, and its observed order.
+                           tols=(1e-3, 1e-4, 1e-5), rtol: float = 1e-4,
+                           slack: float = 10.0) -> PropertyResult:
+    """Quadrature of a one-leaf solid against its closed form, refined by its tolerance.
 
-    ``measure(builder, root, lo, hi, n) -> (volume, com, principal)`` (default: the reference
-    engine). Passes when the relative error (volume, com / size, principal moments) at the
-    finest ``n`` is <= ``rtol`` and the volume error falls at least like ``n**-min_order``
-    between the two finest resolutions (unless it is already at round-off, 1e-12).
-    Figure: the worst relative error at the finest n. Status "n/a" for leaves without a
-    closed form here.
+    ``measure(builder, root, lo, hi, tol) -> (volume, com, principal)`` (default: the
+    reference engine, whose refinement knob is the requested relative accuracy). Passes when
+    every level honours its request (relative volume error <= ``slack * tol``, or round-off
+    1e-12) and the relative errors (volume, com / size, principal moments) at the finest level
+    are <= ``rtol``. The observed order of the volume error against ``tol`` between the two
+    finest levels is reported. Figure: the worst relative error at the finest level. Status
+    "n/a" for leaves without a closed form here.
     """
     name = "quadrature_convergence"
     exact = closed_form(recipe)
@@ -372,8 +373,8 @@ def quadrature_convergence(recipe: TreeRecipe, measure: Optional[Callable] = Non
     size = v0 ** (1 / 3)
     errs = []
     try:
-        for n in ns:
-            v, com, mom = measure(b, root, lo, hi, n)
+        for tol in tols:
+            v, com, mom = measure(b, root, lo, hi, tol)
             e = {"volume": abs(v - v0) / v0,
                  "com": float(np.linalg.norm(np.asarray(com) - com0)) / size}
             if mom0 is not None:
@@ -384,15 +385,17 @@ def quadrature_convergence(recipe: TreeRecipe, measure: Optional[Callable] = Non
     fin = errs[-1]
     worst_key = max(fin, key=fin.get)
     ev = [e["volume"] for e in errs]
-    order = (math.log(ev[-2] / ev[-1]) / math.log(ns[-1] / ns[-2])
+    order = (math.log(ev[-2] / ev[-1]) / math.log(tols[-2] / tols[-1])
              if ev[-1] > 1e-12 and ev[-2] > 0 else float("inf"))
-    ok = fin[worst_key] <= rtol and (order >= min_order or ev[-1] <= 1e-12)
-    text = (f"relative errors by n {list(ns)}: " +
-            "; ".join(f"n={n}: " + ", ".join(f"{k} {v:.2e}" for k, v in e.items())
-                      for n, e in zip(ns, errs)) +
-            f"; observed volume order {order:.2f} (need >= {min_order}, finest error <= {rtol})")
-    return _result(name, ok, fin[worst_key], f"rel error ({worst_key}, n={ns[-1]})", "max",
-                   text, observed_order=order)
+    honoured = all(e <= max(slack * t, 1e-12) for e, t in zip(ev, tols))
+    ok = fin[worst_key] <= rtol and honoured
+    text = (f"relative errors by tol {list(tols)}: " +
+            "; ".join(f"tol={t:g}: " + ", ".join(f"{k} {v:.2e}" for k, v in e.items())
+                      for t, e in zip(tols, errs)) +
+            f"; observed volume order in tol {order:.2f}; every level within {slack:g} x tol: "
+            f"{honoured}; finest error <= {rtol}: {fin[worst_key] <= rtol}")
+    return _result(name, ok, fin[worst_key], f"rel error ({worst_key}, tol={tols[-1]:g})",
+                   "max", text, observed_order=order)
 
 
 # ---------------------------------------------------------------------------- determinism

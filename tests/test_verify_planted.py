@@ -53,7 +53,7 @@ KINDS = ("sphere", "box", "ellipsoid", "hollow_cylinder", "torus", "capsule")
 
 def test_biased_cell_quadrature_is_caught():
     res = P.search(lambda r: P.quadrature_convergence(r, planted.biased_cell_quadrature,
-                                                      ns=(8, 16)),
+                                                      tols=(1e-3, 1e-4)),
                    pst.leaves(kinds=KINDS), settings=settings(FAST, max_examples=10))
     assert res.status == "failed" and res.worst > 1e-2
     assert _nodes_in(res.counterexample) == 1, res.counterexample
