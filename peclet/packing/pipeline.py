@@ -203,7 +203,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     # ---- Step 6: the wall-thickness sweep, s(t) by quadrature
     t = time.perf_counter()
     rows = analysis.wall_sweep(sweep, fr[0]["f_env"], fr[0]["f_env_se"], n=sweep_n,
-                                tol=1e-5) \
+                                tol=1e-4) \
         if len(sweep) else []
     res["sweep"] = rows
     timing["sweep"] = time.perf_counter() - t
