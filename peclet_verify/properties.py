@@ -22,7 +22,6 @@ from typing import Callable, Optional
 
 import numpy as np
 from hypothesis import given
-from hypothesis import settings as hsettings
 
 from .backends import ReferenceBackend, backend_name, check_backend
 from .strategies import TreeRecipe, surface_points

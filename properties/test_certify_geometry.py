@@ -4,7 +4,6 @@ Run with ``pytest --peclet-certify`` (optionally ``--peclet-backend module:facto
 certify another engine against the reference).
 """
 import pytest
-from hypothesis import example
 
 from peclet_verify import properties as P
 from peclet_verify import strategies as pst

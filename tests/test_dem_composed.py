@@ -10,7 +10,6 @@ import os
 from types import SimpleNamespace
 
 import numpy as np
-import pytest
 
 from peclet.core import geom
 from peclet.core.geom.transforms import matrix_to_quat

@@ -110,7 +110,7 @@ def test_bad_bake_arguments(b):
 
 def test_bad_flat_arrays():
     b = geom.SceneBuilder()
-    r = b.add_union(b.add_leaf("sphere", [1.0]), b.add_leaf("box", [1, 1, 1]))
+    b.add_union(b.add_leaf("sphere", [1.0]), b.add_leaf("box", [1, 1, 1]))
     ni, nr, _, _ = b.encode()
     bad = ni.copy()
     bad[2, 2] = 7

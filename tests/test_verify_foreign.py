@@ -1,10 +1,8 @@
 """A foreign engine certified out of process: the upstream ``peclet-geom`` wheel, installed
 into its own virtual environment (it ships a ``peclet`` namespace that must not meet ours)."""
-import os
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 

@@ -668,7 +668,6 @@ class Simulation:
             return
         import time
         t0 = time.perf_counter()
-        n = self._n
         fl = self._flat_geometry()
         inv_mass = self._inv_mass
         inv_inertia = self._resolved_inv_inertia()

@@ -308,7 +308,7 @@ def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
     for t in thicknesses:
         el = make(float(t))
         lo, hi = el.bounds
-        props = _body_properties(el.builder, el.root, lo, hi, **quad_kw)
+        props = el.builder.body_properties(el.root, lo, hi, **quad_kw)
         s = props.volume / el.envelope_volume
         s_err = float(props.volume_error) / el.envelope_volume
         d = 2.0 * el.params["r_outer"]
@@ -316,14 +316,6 @@ def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
         rows.append(dict(t=float(t), t_over_d=float(t) / d, s=float(s), s_err=s_err,
                          eps=float(eps), eps_err=float(math.hypot(s * f_env_se, f_env * s_err))))
     return rows
-
-
-def _body_properties(builder, root, lo, hi, **kw):
-    """``SceneBuilder.body_properties`` (the quadrature of peclet.core.geom)."""
-    if hasattr(builder, "body_properties"):
-        return builder.body_properties(root, lo, hi, **kw)
-    from peclet.core.geom import quadrature
-    return quadrature.body_properties(builder, root, lo, hi, **kw)
 
 
 def surface_mesh(builder, root, half, n):

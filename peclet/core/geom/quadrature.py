@@ -229,26 +229,25 @@ def _breaks(ops, lk, lr, ob, oe, ak, iu, iv, u, v0, v1, a, b, lip, hmin, st, roo
         while s0 != sr:               # every change in (vl, vr], left to right
             lo_ = x0
             hi_ = vr
+            s_hi = sr                 # the signature at hi_, kept so it is never re-solved
             for _ in range(BREAK_STEPS):
                 mid = 0.5 * (lo_ + hi_)
                 nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, mid, a, b, lip, hmin, st,
                                 roots, leaves)
                 if nr < 0:
                     return -1, 0
-                if _signature(nr, ins, leaves) == s0:
+                sm = _signature(nr, ins, leaves)
+                if sm == s0:
                     lo_ = mid
                 else:
                     hi_ = mid
+                    s_hi = sm
             if m >= MAX_BREAKS - 1:
                 return -1, 0
             brk[m] = hi_
             m += 1
             x0 = hi_
-            nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, x0, a, b, lip, hmin, st, roots,
-                            leaves)
-            if nr < 0:
-                return -1, 0
-            s0 = _signature(nr, ins, leaves)
+            s0 = s_hi
             seq = (seq * np.int64(1000033) + s0) % np.int64(4611686018427387903)
             if hi_ >= vr:
                 break
@@ -300,6 +299,7 @@ def _cell_rules(ops, lk, lr, ob, oe, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, l
         while h0 != hr:
             lo_ = x0
             hi_ = ur
+            h_hi = hr                 # the structure hash at hi_, kept so it is never redone
             for _ in range(U_BREAK_STEPS):
                 mid = 0.5 * (lo_ + hi_)
                 m, hm = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, mid, v0, v1, a, b, lip, hmin,
@@ -310,15 +310,13 @@ def _cell_rules(ops, lk, lr, ob, oe, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, l
                     lo_ = mid
                 else:
                     hi_ = mid
+                    h_hi = hm
             if mu >= MAX_BREAKS - 1:
                 return False
             ubrk[mu] = hi_
             mu += 1
             x0 = hi_
-            m, h0 = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, x0, v0, v1, a, b, lip, hmin, st,
-                            roots, leaves, brk)
-            if m < 0:
-                return False
+            h0 = h_hi
             if hi_ >= ur:
                 break
         ul = ur
