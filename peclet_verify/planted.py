@@ -7,7 +7,8 @@ Used by the suite's own tests and by anyone who wants to see a certificate fail:
 - :class:`TreeWalkBackend` evaluates the flat encoding node by node in numpy; with
   ``flip="torus"`` it flips the sign of every torus leaf;
 - :func:`biased_cell_quadrature` counts cells whose centre has ``phi < bias * h``;
-- :func:`thread_order_pour` sums with a ``prange`` reduction (thread-count dependent);
+- :func:`thread_order_pour` adds to a running total with a ``prange`` float reduction
+  (thread-count dependent);
 - :class:`FixedBufferEngine` never grows its contact buffer (``grow=True`` is the correct twin).
 """
 from __future__ import annotations
@@ -101,21 +102,29 @@ def biased_cell_quadrature(builder, root, lo, hi, tol):
 
 
 @njit(parallel=True, cache=True)
-def _racy_energy(pos, vel):
-    e = 0.0
+def _racy_energy(pos, vel, total):
+    # the planted bug: a prange float reduction onto a running total; numba combines the
+    # per-thread partial sums in an order that depends on the thread count, so the bits do
+    # too (already with two bodies once the total is non-zero)
+    e = total
     for i in prange(len(pos)):
         e += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) + 9.81 * pos[i, 1]
     return e
 
 
-def thread_order_pour(state, steps: int = 4):
-    """A toy 'pour' whose update uses a prange float reduction: its bits depend on the
-    thread count (the planted determinism bug)."""
+def thread_order_pour(state, steps: int = 8):
+    """A toy 'pour' that keeps a running energy total (dimensionless toy units) with a
+    ``prange`` float reduction and feeds it back into the velocities: its bits depend on the
+    thread count (the planted determinism bug). Returns [positions, velocities].
+
+    Each step after the first is a fresh chance for the thread-count-dependent rounding, so
+    nearly every state of two or more bodies shows it and a failing state shrinks to two."""
     pos = np.array(state.positions, float)
     vel = np.array(state.velocities, float)
+    total = 0.0
     for _ in range(steps):
-        e = _racy_energy(pos, vel)
-        vel[:, 1] -= 1e-3 * e
+        total = _racy_energy(pos, vel, total)
+        vel[:, 1] -= 1e-3 * total
         pos += 1e-3 * vel
     return [pos, vel]
 

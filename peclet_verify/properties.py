@@ -17,11 +17,13 @@ import math
 import os
 import subprocess
 import sys
+from contextlib import contextmanager, nullcontext
 from dataclasses import asdict, dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
-from hypothesis import given
+from hypothesis import Phase, given, seed
+from hypothesis import settings as hypothesis_settings
 
 from .backends import ReferenceBackend, backend_name, check_backend
 from .strategies import TreeRecipe, surface_points
@@ -80,6 +82,35 @@ def _rng(*keys):
 
 
 # ---------------------------------------------------------------------------- search
+@contextmanager
+def _fixed_constant_pool():
+    """Make Hypothesis draw the same examples whatever modules the process has imported.
+
+    Hypothesis (>= 6.131) mixes "local constants" into generation: literals scanned from every
+    non-test module of the user's code found in ``sys.modules`` at draw time. Which modules are
+    loaded depends on what ran before (a DEM certificate imports ``peclet.dem`` and its
+    constants), so a derandomised search drew different examples alone and after other files.
+    Inside this context the local pool is empty (Hypothesis's own global constants still
+    apply) and the constants cache is cleared on entry and exit. It uses Hypothesis internals;
+    on a version without them nothing needs fixing and this is a no-op.
+    """
+    try:
+        from hypothesis.internal.conjecture import providers
+        original = providers._get_local_constants
+        cache = providers.CONSTANTS_CACHE.cache
+        empty = providers.Constants()
+    except (ImportError, AttributeError):
+        yield
+        return
+    cache.clear()  # its entries were computed from the process's current pool
+    providers._get_local_constants = lambda: empty
+    try:
+        yield
+    finally:
+        providers._get_local_constants = original
+        cache.clear()
+
+
 def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
            describe: Callable = repr) -> PropertyResult:
     """Run ``check(example) -> PropertyResult`` over ``strategy`` with Hypothesis.
@@ -88,32 +119,55 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
     shrinks the input; the returned result carries the shrunk example (``describe(example)``)
     and its own counterexample text. Inputs for which the property does not apply (status
     "n/a") count as examples but never fail. An "unavailable" result stops the search.
+
+    ``examples`` counts the inputs checked up to and including the first failure; the runs
+    Hypothesis makes after it (shrinking, replay) are in ``details["runs_after_failure"]``.
+    Under a derandomised profile (``derandomize=True``, e.g. ``ci``) the seed is a hash of
+    ``name`` (else of ``check.__qualname__``) and the examples drawn do not depend on what else
+    ran in the process: Hypothesis's pool of constants scanned from imported modules is
+    replaced by an empty one during the search.
     """
-    seen = {"n": 0, "applicable": 0, "worst": None, "last_fail": None, "unavailable": None}
+    seen = {"n": 0, "applicable": 0, "worst": None, "last_fail": None, "unavailable": None,
+            "first_fail_at": None, "calls": 0}
 
     def run(example):
         res = check(example)
         if res.status == UNAVAILABLE:
             seen["unavailable"] = res
             return
-        seen["n"] += 1
+        seen["calls"] += 1
+        before_failure = seen["first_fail_at"] is None
+        seen["n"] += before_failure
         if res.status == NOT_APPLICABLE:
             return
-        seen["applicable"] += 1
+        seen["applicable"] += before_failure
         w = seen["worst"]
         if math.isfinite(res.worst) and (w is None or not math.isfinite(w.worst)
                                          or (res.worst < w.worst if res.worse == "min"
                                              else res.worst > w.worst)):
             seen["worst"] = res
         if not res.passed:
+            if seen["first_fail_at"] is None:
+                seen["first_fail_at"] = seen["calls"]
             seen["last_fail"] = (example, res)
             raise AssertionError(f"{res.name} failed:\n{res.counterexample}")
 
-    test = given(strategy)(run)
-    if settings is not None:
-        test = settings(test)
+    effective = settings if settings is not None else hypothesis_settings.default
+    # no explain phase: it re-runs the failing input hundreds of times to annotate Hypothesis's
+    # own report, which search never shows (the counterexample is describe(shrunk input))
+    test = hypothesis_settings(effective, phases=[p for p in effective.phases
+                                                  if p is not Phase.explain])(given(strategy)(run))
+    pool = nullcontext()
+    if effective.derandomize:
+        # derandomised: the seed comes from the certificate's name (Hypothesis would hash the
+        # source of ``run`` above, the same for every certificate and changed by any edit
+        # here) and the examples must not depend on what the process imported before
+        label = name or getattr(check, "__qualname__", "property")
+        test = seed(int.from_bytes(hashlib.sha256(label.encode()).digest()[:8], "little"))(test)
+        pool = _fixed_constant_pool()
     try:
-        test()
+        with pool:
+            test()
         err = None
     except AssertionError as exc:
         err = exc
@@ -126,6 +180,8 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
                           PASSED if err is None else FAILED,
                           worst.worse if worst else "max",
                           {"applicable": seen["applicable"]})
+    if seen["first_fail_at"] is not None:
+        base.details["runs_after_failure"] = seen["calls"] - seen["first_fail_at"]
     if seen["applicable"] == 0 and err is None:
         base.status = NOT_APPLICABLE
     if err is not None:

@@ -539,20 +539,34 @@ class RigidState:
         return len(self.positions)
 
     def __repr__(self):
+        # Python float reprs round-trip exactly, so the text rebuilds the same bits
         def a(x):
-            return np.array2string(x, precision=17, separator=", ")
-        return (f"RigidState(positions=np.array({a(self.positions)}), "
-                f"quaternions=np.array({a(self.quaternions)}), "
-                f"velocities=np.array({a(self.velocities)}), "
-                f"angular_velocities=np.array({a(self.angular_velocities)}))")
+            return f"np.array({np.asarray(x, dtype=np.float64).tolist()!r})"
+        return (f"RigidState(positions={a(self.positions)}, "
+                f"quaternions={a(self.quaternions)}, "
+                f"velocities={a(self.velocities)}, "
+                f"angular_velocities={a(self.angular_velocities)})")
+
+    def snippet(self) -> str:
+        """Runnable Python that rebuilds this state (bit for bit) as ``state``."""
+        return ("import numpy as np\nfrom peclet_verify.strategies import RigidState\n"
+                f"state = {self!r}")
 
 
 def rigid_states(n, box=((0.0, 0.0, 0.0), (4.0, 4.0, 4.0)), max_speed: float = 1.0,
                  max_spin: float = 1.0) -> st.SearchStrategy:
-    """:class:`RigidState` of ``n`` bodies (an int, or a strategy of ints >= 1) with positions
-    in ``box=(lo, hi)`` (on a 4096-step grid per axis), velocity components in
-    [-max_speed, max_speed] and world-frame spins in [-max_spin, max_spin] rad/s (2048 steps
-    each side), unit quaternions (x, y, z, w)."""
+    """:class:`RigidState` of ``n`` bodies with positions in ``box=(lo, hi)`` (on a 4096-step
+    grid per axis), velocity components in [-max_speed, max_speed] and world-frame spins in
+    [-max_spin, max_spin] rad/s (2048 steps each side), unit quaternions (x, y, z, w) (axis
+    from integer components in [-256, 256], angle a multiple of pi/256).
+
+    ``n`` is an int >= 1, a pair ``(min_n, max_n)`` (best: bodies form a list Hypothesis can
+    delete from anywhere, so a failing state shrinks to its few relevant bodies), or a
+    strategy of ints >= 1 (the count is drawn first; shrinking can only drop trailing bodies).
+    Every value is drawn as an integer on its grid, so a failing state shrinks in seconds
+    towards bodies at rest at ``lo`` with identity rotations; ``repr(state)`` /
+    ``state.snippet()`` rebuilds it bit for bit.
+    """
     lo = np.asarray(box[0], float).reshape(3)
     hi = np.asarray(box[1], float).reshape(3)
     if not np.all(lo <= hi):
@@ -560,7 +574,6 @@ def rigid_states(n, box=((0.0, 0.0, 0.0), (4.0, 4.0, 4.0)), max_speed: float = 1
     for nm, v in (("max_speed", max_speed), ("max_spin", max_spin)):
         if not (math.isfinite(v) and v >= 0):
             raise ValueError(f"{nm} must be finite and >= 0, got {v!r}")
-    counts = n if isinstance(n, st.SearchStrategy) else st.just(_check_int(n, "n", 1))
 
     def grid(lo_, hi_, steps=4096):
         # quantised values shrink in few steps (float arrays can take minutes to shrink)
@@ -569,18 +582,43 @@ def rigid_states(n, box=((0.0, 0.0, 0.0), (4.0, 4.0, 4.0)), max_speed: float = 1
     def sym(h, steps=2048):
         return st.integers(-steps, steps).map(lambda k: h * k / steps)
 
-    @st.composite
-    def draw_state(draw):
-        k = draw(counts)
-        if k < 1:
-            raise ValueError(f"n must be >= 1, got {k}")
-        pos = np.array([[draw(grid(lo[a], hi[a])) for a in range(3)] for _ in range(k)])
-        quats = np.array([draw(unit_quaternions()) for _ in range(k)], dtype=np.float64)
-        vel = np.array([[draw(sym(max_speed)) for _ in range(3)] for _ in range(k)])
-        spin = np.array([[draw(sym(max_spin)) for _ in range(3)] for _ in range(k)])
+    def quat(ix, iy, iz, k, steps=256):
+        nrm = math.sqrt(ix * ix + iy * iy + iz * iz)
+        ax = (1.0, 0.0, 0.0) if nrm == 0 else (ix / nrm, iy / nrm, iz / nrm)
+        half = 0.5 * math.pi * k / steps
+        s, c = math.sin(half), math.cos(half)
+        return (ax[0] * s, ax[1] * s, ax[2] * s, c)
+
+    comp = st.integers(-256, 256)
+    body = st.tuples(st.tuples(*(grid(lo[a], hi[a]) for a in range(3))),
+                     st.builds(quat, comp, comp, comp, st.integers(0, 256)),
+                     st.tuples(*(sym(max_speed) for _ in range(3))),
+                     st.tuples(*(sym(max_spin) for _ in range(3))))
+
+    def state(bodies):
+        k = len(bodies)
+        pos, quats, vel, spin = (np.array([b[j] for b in bodies], dtype=np.float64)
+                                 for j in range(4))
         return RigidState(pos.reshape(k, 3), quats.reshape(k, 4), vel.reshape(k, 3),
                           spin.reshape(k, 3))
-    return draw_state()
+
+    if isinstance(n, st.SearchStrategy):
+        @st.composite
+        def counted(draw):
+            k = draw(n)
+            if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+                raise ValueError(f"n must draw ints >= 1, got {k!r}")
+            return state([draw(body) for _ in range(k)])
+        return counted()
+    if isinstance(n, (tuple, list)):
+        if len(n) != 2:
+            raise ValueError(f"n must be an int >= 1, a pair (min_n, max_n) or a strategy, "
+                             f"got {n!r}")
+        n_lo = _check_int(n[0], "n[0] (min_n)", 1)
+        n_hi = _check_int(n[1], "n[1] (max_n)", n_lo)
+    else:
+        n_lo = n_hi = _check_int(n, "n", 1)
+    return st.lists(body, min_size=n_lo, max_size=n_hi).map(state)
 
 
 def capacity_sequences(min_capacity: int = 1, max_capacity: int = 64, max_size: int = 6):

@@ -14,9 +14,9 @@ FEW = settings(max_examples=min(settings.default.max_examples, 5))
 
 def test_determinism_across_threads(peclet_certificate):
     peclet_certificate(P.search(
-        lambda s: P.determinism(s), pst.rigid_states(st.integers(2, 12),
-                                                     box=((0, 0.3, 0), (3, 3, 3))),
-        name="determinism (1 thread twice, 2 threads)", settings=FEW))
+        lambda s: P.determinism(s), pst.rigid_states((2, 12), box=((0, 0.3, 0), (3, 3, 3))),
+        name="determinism (1 thread twice, 2 threads)", settings=FEW,
+        describe=lambda s: s.snippet()))
 
 
 def test_buffer_growth(peclet_certificate):
@@ -24,5 +24,6 @@ def test_buffer_growth(peclet_certificate):
         lambda a: P.buffer_growth(a[0], a[1], a[2]),
         st.tuples(pst.trees(max_leaves=2, certified_only=True, transforms=False),
                   pst.capacity_sequences(max_size=4),
-                  pst.rigid_states(st.integers(2, 5), box=((0, 0, 0), (1.5, 1.5, 1.5)))),
-        name="buffer growth", settings=FEW))
+                  pst.rigid_states((2, 5), box=((0, 0, 0), (1.5, 1.5, 1.5)))),
+        name="buffer growth", settings=FEW,
+        describe=lambda a: f"{a[0]!r}\ncapacities = {a[1]!r}\n{a[2].snippet()}"))

@@ -3,8 +3,7 @@ counterexample, and pass their correct twins."""
 import numba
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, Phase, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, settings
 
 from peclet_verify import planted
 from peclet_verify import properties as P
@@ -74,13 +73,32 @@ def test_closed_forms_match_a_fine_cell_rule():
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs >= 2 numba threads")
 def test_thread_order_dependent_sum_is_caught():
+    """Caught, shrunk (the shrink phase on) to a state of at most 3 bodies, printed as a
+    runnable snippet that rebuilds the state and fails again."""
     res = P.search(lambda s: P.determinism(s, planted.thread_order_pour),
-                   pst.rigid_states(st.integers(2, 8)),
-                   # shrinking float states runs into Hypothesis's 5-minute shrink limit here
-                   settings=settings(FAST, max_examples=15,
-                                     phases=[Phase.explicit, Phase.reuse, Phase.generate]))
+                   pst.rigid_states((2, 8)), settings=settings(FAST, max_examples=15),
+                   describe=lambda s: s.snippet())
     assert res.status == "failed" and res.worst >= 2
-    assert "RigidState" in res.counterexample
+    assert res.details["runs_after_failure"] > 0  # Hypothesis did shrink
+    snippet = res.counterexample.split("shrunk input:\n", 1)[1].split("\n\n", 1)[0]
+    assert "RigidState(" in snippet and "state = " in snippet
+    scope = {}
+    exec(snippet, scope)
+    state = scope["state"]
+    assert isinstance(state, pst.RigidState) and 2 <= state.n <= 3, snippet
+    again = P.determinism(state, planted.thread_order_pour)
+    assert again.status == "failed", snippet
+
+
+def test_rigid_state_snippet_is_exact():
+    """repr / snippet of a state rebuild the same bits (so a printed counterexample replays)."""
+    q = np.array([[0.1, -0.2, 0.3, 0.9]])
+    state = pst.RigidState(np.array([[1 / 3, 0.1 + 0.2, -1e-300]]), q / np.linalg.norm(q),
+                           np.array([[np.pi, -0.0, 5e-324]]), np.array([[1e300, 2.0, 3.0]]))
+    scope = {}
+    exec(state.snippet(), scope)
+    for name in ("positions", "quaternions", "velocities", "angular_velocities"):
+        assert getattr(scope["state"], name).tobytes() == getattr(state, name).tobytes(), name
 
 
 def test_deterministic_pour_passes():

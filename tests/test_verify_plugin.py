@@ -15,7 +15,8 @@ DOWNSTREAM = textwrap.dedent('''
     def test_my_engine_signs(peclet_certificate, peclet_backend):
         peclet_certificate(P.search(lambda r: P.sign_agreement(r, backend=peclet_backend, n=32),
                                     pst.trees(max_leaves=3), name="downstream sign agreement",
-                                    settings=settings(max_examples=8, deadline=None)))
+                                    # ci seeds by the name: a torus by example 5; margin
+                                    settings=settings(max_examples=30, deadline=None)))
 
     def test_ordinary():
         assert pst.TreeRecipe is not None
@@ -71,3 +72,60 @@ def test_this_repo_properties_skip_without_flag():
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert " passed" not in proc.stdout and "skipped" in proc.stdout
     assert proc.stdout.count("run with --peclet-certify") >= 1
+
+
+# -------------------------------------------------------------- run-order independence (ci)
+CERT_A = textwrap.dedent('''
+    import pytest
+    from peclet_verify import properties as P
+    from peclet_verify import strategies as pst
+
+    @pytest.mark.peclet_certify
+    def test_a_equation1(peclet_certificate, peclet_backend):
+        # no settings: the loaded profile (ci) decides examples and seed
+        peclet_certificate(P.search(lambda r: P.equation1(r, peclet_backend, n=32),
+                                    pst.trees(certified_only=True, max_leaves=3),
+                                    name="a: equation1"))
+''')
+CERT_B = textwrap.dedent('''
+    import pytest
+    from peclet_verify import properties as P
+    from peclet_verify import strategies as pst
+
+    @pytest.mark.peclet_certify
+    def test_b_sign(peclet_certificate):
+        # imports made while running (as the DEM certificates import peclet.dem) bring new
+        # modules, and their source constants, into the process
+        import peclet.dem  # noqa: F401
+        import engine_b
+        peclet_certificate(P.search(lambda r: P.sign_agreement(r, n=16),
+                                    pst.trees(max_leaves=2), name="b: sign " + engine_b.NAME))
+''')
+ENGINE_B = "NAME = 'b'\nCONSTANTS = (0.123456789, 0.3337, 0.77731, 1.2345e-3, 17, 4093)\n"
+
+
+def _certify_files(tmp_path, tag, files):
+    rep = tmp_path / f"report-{tag}.json"
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                           "--peclet-certify", "--peclet-profile", "ci",
+                           f"--peclet-report={rep}", *files], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return {c["name"]: c for c in json.loads(rep.read_text())["certificates"]}
+
+
+def test_ci_certificate_is_run_order_independent(tmp_path):
+    """The ci profile draws the same examples for a certificate whether its file runs alone,
+    before or after another certificate file (which imports modules while it runs)."""
+    (tmp_path / "test_cert_a.py").write_text(CERT_A)
+    (tmp_path / "test_cert_b.py").write_text(CERT_B)
+    (tmp_path / "engine_b.py").write_text(ENGINE_B)
+    alone = _certify_files(tmp_path, "alone", ["test_cert_a.py"])["a: equation1"]
+    a_first = _certify_files(tmp_path, "ab", ["test_cert_a.py", "test_cert_b.py"])
+    b_first = _certify_files(tmp_path, "ba", ["test_cert_b.py", "test_cert_a.py"])
+    assert alone["examples"] == 40 and alone["details"]["applicable"] == 40
+    for run in (a_first, b_first):
+        a = run["a: equation1"]
+        assert (a["examples"], a["worst"], a["details"]) == \
+            (alone["examples"], alone["worst"], alone["details"])
+    assert a_first["b: sign b"] == b_first["b: sign b"]
