@@ -1,10 +1,14 @@
 """Implicit quadrature against closed forms, error estimates, principal frames, bad input.
 
-Measured state (n = 8, tol = 1e-7): smooth leaves reach 1e-8..1e-9 relative in volume and
-inertia with an error estimate that bounds the error; leaves with creases (box, tube, cone)
-stall near 1e-5 with an estimate that does NOT bound the error. The issue's targets (1e-10 /
-1e-8 and a bounding estimate everywhere) are recorded below as strict xfails.
+Measured state (n = 8, tol = 1e-9): smooth leaves (sphere, ellipsoid, capsule, torus) reach
+<= 1e-11 relative in volume and <= 2e-12 in inertia; box, hollow cylinder and cone <= 1e-10;
+every reported estimate bounds its error. NOT reached: a box at an *arbitrary* rotation — for
+some rotations a piece of the solid narrower than the probe spacing (the wedge at a box vertex
+inside a cell) is still missed and the error stays near 1e-7..1e-6 with a small estimate (a
+strict xfail below).
 """
+import sys
+
 import numba
 import numpy as np
 import pytest
@@ -17,24 +21,46 @@ R = quat_to_matrix(Q)
 T = np.array([0.07, -0.05, 0.11])
 BOX = ([-0.75] * 3, [0.75] * 3)
 
-# kind, params, volume, principal moments per unit mass (None: volume only)
+
+def _capsule_moments(a, L):
+    """Principal moments per unit volume of a capsule about y (radius a, half-length L)."""
+    vc = np.pi * a * a * 2 * L
+    vh = 2.0 / 3.0 * np.pi * a ** 3                       # one hemisphere
+    iy = vc * a * a / 2 + 2 * vh * 0.4 * a * a
+    ix = vc * (a * a / 4 + L * L / 3) + 2 * vh * (0.4 * a * a + L * L + 0.75 * a * L)
+    return np.array([ix, iy, ix]) / (vc + 2 * vh)
+
+
+def _tube_moments(ro, h, t):
+    ri = ro - t
+    return np.array([(ro ** 2 + ri ** 2) / 4 + h * h / 12, (ro ** 2 + ri ** 2) / 2,
+                     (ro ** 2 + ri ** 2) / 4 + h * h / 12])
+
+
+# kind, params, volume, principal moments per unit mass in the leaf frame (None: volume only)
 CLOSED = {
     "sphere": ("sphere", [0.5], 4 / 3 * np.pi * 0.125, np.full(3, 0.4 * 0.25)),
     "ellipsoid": ("ellipsoid", [0.5, 0.35, 0.25], 4 / 3 * np.pi * 0.5 * 0.35 * 0.25,
                   np.array([0.35 ** 2 + 0.25 ** 2, 0.5 ** 2 + 0.25 ** 2, 0.5 ** 2 + 0.35 ** 2]) / 5),
-    "capsule": ("capsule", [0.25, 0.3], np.pi * 0.0625 * 0.6 + 4 / 3 * np.pi * 0.25 ** 3, None),
-    "torus": ("torus", [0.4, 0.12], 2 * np.pi ** 2 * 0.4 * 0.0144, None),
+    "capsule": ("capsule", [0.25, 0.3], np.pi * 0.0625 * 0.6 + 4 / 3 * np.pi * 0.25 ** 3,
+                _capsule_moments(0.25, 0.3)),
+    "torus": ("torus", [0.4, 0.12], 2 * np.pi ** 2 * 0.4 * 0.0144,
+              np.array([0.4 ** 2 / 2 + 5 / 8 * 0.12 ** 2, 0.4 ** 2 + 0.75 * 0.12 ** 2,
+                        0.4 ** 2 / 2 + 5 / 8 * 0.12 ** 2])),
     "box": ("box", [0.3, 0.2, 0.4], 8 * 0.3 * 0.2 * 0.4,
             np.array([0.2 ** 2 + 0.4 ** 2, 0.3 ** 2 + 0.4 ** 2, 0.3 ** 2 + 0.2 ** 2]) / 3),
     "hollow_cylinder": ("hollow_cylinder", [0.5, 0.8, 0.15], np.pi * 0.8 * (0.25 - 0.35 ** 2),
-                        None),
+                        _tube_moments(0.5, 0.8, 0.15)),
+    # frustum about y: r = 0.4 at y = -0.3, r = 0.2 at y = +0.3
+    "cone": ("cone", [0.4, 0.2, 0.3], np.pi * 0.6 / 3 * (0.16 + 0.08 + 0.04), None),
 }
 SMOOTH = ["sphere", "ellipsoid", "capsule", "torus"]
-CREASED = ["box", "hollow_cylinder"]
+CREASED = ["box", "hollow_cylinder", "cone"]
 _cache = {}
 
 
-def measure(name, n=8, tol=1e-7):
+def measure(name, n=8, tol=1e-9):
+    """(props, relative volume error, relative inertia error or None, exact volume)."""
     key = (name, n, tol)
     if key not in _cache:
         kind, prm, V, I = CLOSED[name]
@@ -53,40 +79,80 @@ def measure(name, n=8, tol=1e-7):
 @pytest.mark.parametrize("name", SMOOTH)
 def test_smooth_leaves_offset_and_rotated(name):
     p, ev, ei, V = measure(name)
-    assert ev <= 2e-7
-    assert abs(p.volume - CLOSED[name][2]) <= p.volume_error      # the estimate bounds it
-    assert np.abs(p.com - T).max() <= 1e-7
-    if ei is not None:
-        assert ei <= 1e-7
-        assert ei * np.abs(p.inertia).max() <= p.moment_error
+    assert ev <= 1e-10
+    assert ev * V <= p.volume_error                        # the estimate bounds it
+    assert np.abs(p.com - T).max() <= 1e-9
+    assert ei <= 1e-9
+    assert ei * np.abs(p.inertia).max() <= p.moment_error
 
 
 @pytest.mark.parametrize("name", CREASED)
-def test_creased_leaves_within_1e_4(name):
+def test_creased_leaves_offset_and_rotated(name):
     p, ev, ei, V = measure(name)
-    assert ev <= 1e-4
+    assert ev <= 1e-8
+    assert ev * V <= p.volume_error
     if ei is not None:
-        assert ei <= 2e-4
+        assert ei <= 1e-8
+        assert ei * np.abs(p.inertia).max() <= p.moment_error
 
 
-@pytest.mark.xfail(strict=True, reason="issue target 1e-10 on smooth leaves not reached: the "
-                   "rule stalls near 1e-8..1e-9 (see module docstring)")
-def test_target_smooth_volume_1e_10():
-    assert max(measure(n)[1] for n in SMOOTH) <= 1e-10
+def test_rotated_box_principal_axes_within_1e_6_rad():
+    p, ev, ei, V = measure("box")
+    order = np.argsort(CLOSED["box"][3])
+    for k in range(3):
+        cosang = abs(p.axes[:, k] @ R[:, order[k]])
+        assert np.arccos(min(1.0, cosang)) < 1e-6
 
 
-@pytest.mark.xfail(strict=True, reason="creases inside one leaf still converge slowly: box and "
-                   "tube errors ~1e-5 against the 1e-8 target")
-def test_target_creased_volume_1e_8():
-    assert max(measure(n)[1] for n in CREASED) <= 1e-8
+@pytest.mark.xfail(strict=True, reason="features thinner than the probe spacing (the wedge at a "
+                   "box vertex inside a cut cell) can still be missed: at some rotations the "
+                   "error stays ~1e-7..1e-6 and the estimate does not see it")
+def test_box_at_random_rotations_1e_8():
+    rng = np.random.default_rng(0)
+    worst = 0.0
+    for _ in range(8):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        b = geom.SceneBuilder()
+        r = b.add_leaf("box", [0.3, 0.2, 0.4], translation=rng.uniform(-0.1, 0.1, 3), rotation=q)
+        p = b.body_properties(r, *BOX, n=8, tol=1e-9)
+        worst = max(worst, abs(p.volume - 0.192) / 0.192)
+    assert worst <= 1e-8
 
 
-@pytest.mark.xfail(strict=True, reason="on creased leaves the |I7 - I5| estimate misses the "
-                   "crease error, so it does not bound the actual error")
-def test_target_estimate_bounds_creased_error():
-    for name in CREASED:
-        p, ev, ei, V = measure(name)
-        assert ev * V <= p.volume_error
+@pytest.mark.parametrize("name", ["sphere", "torus"])
+def test_convergence_order_on_smooth_leaves(name):
+    """Top-level cells halved (tol loose, so no adaptive refinement): order >= 4."""
+    kind, prm, V, _ = CLOSED[name]
+    b = geom.SceneBuilder()
+    r = b.add_leaf(kind, prm, translation=T, rotation=Q)
+    rows = []
+    for n in (6, 12, 24):
+        p = b.body_properties(r, *BOX, n=n, tol=1e-3)
+        assert p.diagnostics["max_depth"] == 0
+        rows.append((n, abs(p.volume - V) / V))
+    print(f"\n{name}: n, relative volume error, observed order")
+    for (n0, e0), (n1, e1) in zip([(None, None)] + rows[:-1], rows):
+        print(f"  {n1:3d}  {e1:.3e}  {'' if e0 is None else f'{np.log2(e0 / e1):.2f}'}")
+    order = np.log2(rows[0][1] / rows[-1][1]) / 2          # over two halvings
+    assert order >= 4.0
+
+
+def test_pall_ring_converges_to_1e_9():
+    """Step 3 done right: two tolerances agree to 1e-9 relative, the coarse estimate bounds
+    the difference (volume and principal moments)."""
+    sys.path.insert(0, __file__.rsplit("/", 1)[0])
+    from page_steps import b, ring
+    coarse = b.body_properties(ring, *BOX, n=8, tol=1e-7)
+    fine = b.body_properties(ring, *BOX, n=8, tol=1e-9)
+    dv = abs(coarse.volume - fine.volume)
+    assert dv / fine.volume <= 1e-9
+    assert dv <= coarse.volume_error
+    dI = np.abs(coarse.principal - fine.principal).max()
+    assert dI / fine.principal.max() <= 1e-9
+    assert dI <= coarse.moment_error
+    # the page's unconverged figures are NOT reproduced: ours differ from them by > 1e-4
+    assert abs(fine.volume - 0.268032) > 1e-5
 
 
 def test_ellipsoid_principal_axes_and_frame():

@@ -40,9 +40,30 @@ from numba import njit, prange
 from . import kernels as K
 from .transforms import matrix_to_quat
 
-#: Max roots along one line and breakpoints across one cell.
-MAX_ROOTS = 64
-MAX_BREAKS = 64
+#: Max roots along one line, knots and breakpoints across one cell (a scratch row each).
+MAX_ROOTS = 128
+MAX_BREAKS = 128
+#: Rows of the per-thread scratch S: line roots and their features, knot search roots and
+#: features, v-knots, v-breaks and their tangency flags, u-knots, u-breaks and flags, extra
+#: v-probes, and piece midpoints carried from neighbouring u (two ends and a spare).
+(R_ROOT, R_LEAF, R_KROOT, R_KLEAF, R_VKNOT, R_VBRK, R_VFLAG, R_UKNOT, R_UBRK, R_UFLAG, R_EXTRA,
+ R_MLO, R_MHI, R_MY) = range(14)
+SCRATCH_ROWS = 14
+#: A line search resolves pairs of roots down to LINE_EPS of the line (stack of halvings).
+LINE_EPS = 1e-10
+LINE_STACK = 64
+LINE_EXTRA = 1024
+#: ... and on the lines probed while bisecting for a breakpoint, which home in on walls parallel
+#: to the line (where certifying costs ~length/distance evaluations) and only decide a side.
+BISECT_EXTRA = 1024
+#: Breaks closer than FLICKER (of the cell) to the previous one are a signature flickering at a
+#: tangency, not structure: they are stepped over.
+FLICKER = 1e-10
+#: Structure is probed this far (of the cell) inside each knot segment: right at a knot a new
+#: piece is thinner than the level below resolves, and probing there would only find it again
+#: by bisection. Only where to look moves; pieces still start at the exact knots.
+V_NUDGE = 1e-11
+U_NUDGE = 1e-9
 #: Levels of refinement below the top cells.
 MAX_DEPTH = 8
 #: Signature probes across a cell (intervals).
@@ -50,16 +71,28 @@ V_PROBES = 4
 #: Bisection steps locating a breakpoint of the inner integrand (2^-44 of the cell): it may
 #: jump there (a wall parallel to the height axis), so the location must be sharp.
 BREAK_STEPS = 44
-#: ... and of the outer integrand, which is continuous: an error quadratic in the location.
+#: ... but past KINK_STEPS a bracket across which the line's inside length changes by less than
+#: KINK_SLOPE x its width holds a kink (or a jump of that size), whose misplacement costs only
+#: O(width^2): the bisection stops there.
+KINK_STEPS = 20
+KINK_SLOPE = 1e3
+#: ... and of the outer integrand (2^-30 of the probe interval): it jumps only at a wall normal to
+#: u, whose trace on the cell's edges is a u-knot, found exactly, unless the wall ends inside.
 U_BREAK_STEPS = 30
+#: While locating a u-breakpoint only the v-structure (the sequence of piece signatures)
+#: matters, not where its breaks sit: its v-bisections stop at 2^-HASH_STEPS.
+HASH_STEPS = 12
+#: u-breaks closer than this to the previous one are flicker (4 u-bisection resolutions).
+U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
 
 # moment indices of the 10 raw moments (coordinates relative to the box centre)
 # 0: 1, 1: x, 2: y, 3: z, 4: xx, 5: yy, 6: zz, 7: xy, 8: xz, 9: yz
 
 
 @njit(cache=True)
-def _phi(ops, lk, lr, ob, oe, ak, u, v, t, iu, iv, st):
-    """phi at the point with coordinate t on axis ak and u, v on axes iu, iv."""
+def _phi(P, ak, u, v, t, iu, iv, st):
+    """phi at the point with coordinate t on axis ak, u on axis iu and v on axis iv.
+    ``P`` is the program tuple (ops, leaf_kind, leaf_reals, op_begin, op_end)."""
     p0 = 0.0
     p1 = 0.0
     p2 = 0.0
@@ -81,16 +114,15 @@ def _phi(ops, lk, lr, ob, oe, ak, u, v, t, iu, iv, st):
         p1 = v
     else:
         p2 = v
-    return K.eval_point(ops, lk, lr, ob, oe, p0, p1, p2, st)[0]
+    return K.eval_point(P[0], P[1], P[2], P[3], P[4], p0, p1, p2, st)[0]
 
 
 @njit(cache=True)
-def _refine(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, fa, b, fb, st):
+def _refine(P, ak, iu, iv, u, v, a, fa, b, fb, st):
     """A root of phi in [a, b] (fa, fb of opposite signs) by the Illinois method.
 
-    Returns (root, active leaf at the root side nearest the root)."""
+    Returns (root, active leaf feature at the root)."""
     side = 0
-    leaf = -1.0
     for it in range(200):
         if b - a <= 4e-16 * (abs(a) + abs(b)) + 1e-300:
             break
@@ -100,10 +132,9 @@ def _refine(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, fa, b, fb, st):
             m = (a * fb - b * fa) / (fb - fa)
             if not (a < m < b):
                 m = 0.5 * (a + b)
-        fm = _phi(ops, lk, lr, ob, oe, ak, u, v, m, iu, iv, st)
-        leaf = st[0, 4]
+        fm = _phi(P, ak, u, v, m, iu, iv, st)
         if fm == 0.0:
-            return m, leaf
+            return m, st[0, 4]
         if (fm < 0.0) == (fa < 0.0):
             a = m
             fa = fm
@@ -117,18 +148,34 @@ def _refine(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, fa, b, fb, st):
                 fa *= 0.5
             side = 1
     r = 0.5 * (a + b)
-    _phi(ops, lk, lr, ob, oe, ak, u, v, r, iu, iv, st)
+    _phi(P, ak, u, v, r, iu, iv, st)
     return r, st[0, 4]
 
 
 @njit(cache=True)
-def _line(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, b, lip, hmin, st, roots, leaves):
-    """Roots of phi along axis ak over [a, b] at (u, v). Returns (count, starts_inside);
-    count = -1 if more than MAX_ROOTS."""
+def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0, extra_max):
+    """Roots of phi along axis ak over [a, b] at (u, v), written to roots/leaves from slot r0.
+
+    Returns (count, starts_inside); count = -1 on overflow. Steps are ``max(|phi|, (b-a)/64)``.
+    On a 1-Lipschitz tree a step [x, y] with no sign change is *proved* root-free when
+    ``|phi(x)| + |phi(y)| > y - x`` (a root s would need |phi(x)| <= s - x and |phi(y)| <= y - s);
+    otherwise a run of the other sign hidden in it is at most ``(y - x) - |phi(x)| - |phi(y)|``
+    long, and the step is bisected until that bound is below ``LINE_EPS (b - a)``. Two roots closer than that (a
+    grazing touch, or round-off noise where the line is tangent to the surface) annihilate:
+    the run between them carries no measurable length. The halvings are capped at LINE_EXTRA
+    evaluations per line: a line running within d of the surface over a stretch s would need
+    ~s/d of them (the tangencies that the breakpoint bisection homes in on); past the cap a
+    step is accepted unproved, so a pair of roots narrower than the step then left may be
+    missed on such a line. Without the Lipschitz property
+    the steps are uniform and a pair of roots closer than (b - a)/64 can be missed."""
+    hmin = (b - a) / 64.0
+    eps = LINE_EPS * (b - a)
     t = a
-    f = _phi(ops, lk, lr, ob, oe, ak, u, v, t, iu, iv, st)
+    f = _phi(P, ak, u, v, t, iu, iv, st)
     inside0 = f < 0.0
     nr = 0
+    extra = 0
+    stk = np.empty((LINE_STACK, 4))
     while t < b:
         step = hmin
         if lip and abs(f) > step:
@@ -136,24 +183,61 @@ def _line(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, b, lip, hmin, st, roots, lea
         t2 = t + step
         if t2 > b:
             t2 = b
-        f2 = _phi(ops, lk, lr, ob, oe, ak, u, v, t2, iu, iv, st)
-        if (f < 0.0) != (f2 < 0.0):
-            if nr >= MAX_ROOTS:
-                return -1, inside0
-            r, lf = _refine(ops, lk, lr, ob, oe, ak, iu, iv, u, v, t, f, t2, f2, st)
-            roots[nr] = r
-            leaves[nr] = lf
-            nr += 1
+        f2 = _phi(P, ak, u, v, t2, iu, iv, st)
+        # sub-intervals of [t, t2] still to examine, processed left to right
+        ns = 1
+        stk[0, 0] = t
+        stk[0, 1] = f
+        stk[0, 2] = t2
+        stk[0, 3] = f2
+        while ns > 0:
+            ns -= 1
+            x = stk[ns, 0]
+            fx = stk[ns, 1]
+            y = stk[ns, 2]
+            fy = stk[ns, 3]
+            if (fx < 0.0) != (fy < 0.0):
+                if r0 + nr >= roots.shape[0]:
+                    return -1, inside0
+                r, lf = _refine(P, ak, iu, iv, u, v, x, fx, y, fy, st)
+                if nr > 0 and r - roots[r0 + nr - 1] <= eps:
+                    nr -= 1                    # a grazing pair (or round-off noise at a
+                else:                          # tangency): the two roots annihilate
+                    roots[r0 + nr] = r
+                    leaves[r0 + nr] = lf
+                    nr += 1
+            elif (lip and (y - x) - (abs(fx) + abs(fy)) > eps and ns + 2 <= LINE_STACK
+                  and extra < extra_max):
+                extra += 1
+                m = 0.5 * (x + y)
+                fm = _phi(P, ak, u, v, m, iu, iv, st)
+                stk[ns, 0] = m                 # right half first: the left is popped next
+                stk[ns, 1] = fm
+                stk[ns, 2] = y
+                stk[ns, 3] = fy
+                stk[ns + 1, 0] = x
+                stk[ns + 1, 1] = fx
+                stk[ns + 1, 2] = m
+                stk[ns + 1, 3] = fm
+                ns += 2
         t = t2
         f = f2
     return nr, inside0
 
 
+@njit(cache=True, inline="always")
+def _mix(h, x):
+    """One FNV-1a style step on uint64 (wrapping): order-sensitive, and no value maps to the
+    identity, so an empty line and a missing piece cannot cancel out."""
+    return (h ^ np.uint64(x)) * np.uint64(1099511628211)
+
+
 @njit(cache=True)
 def _signature(nr, inside0, leaves):
-    h = np.int64(nr * 2 + (1 if inside0 else 0))
+    """Hash of a line's root structure: root count, starting side, active feature per root."""
+    h = _mix(np.uint64(14695981039346656037), nr * 2 + (1 if inside0 else 0))
     for i in range(nr):
-        h = (h * np.int64(1000003) + np.int64(leaves[i]) + 1) % np.int64(4611686018427387903)
+        h = _mix(h, np.int64(leaves[i]) + 1)
     return h
 
 
@@ -203,125 +287,348 @@ def _pair(i, j):
 
 
 @njit(cache=True)
-def _breaks(ops, lk, lr, ob, oe, ak, iu, iv, u, v0, v1, a, b, lip, hmin, st, roots, leaves,
-            brk):
-    """Breakpoints of the v-integrand at outer coordinate u: fills brk[0..m-1] with v0, the
-    located signature changes, v1. Returns (m, hash of the pieces' signature sequence);
-    m = -1 on overflow. Changes are located to 2^-BREAK_STEPS of the probe interval."""
-    m = 0
-    brk[m] = v0
-    m += 1
-    nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, v0, a, b, lip, hmin, st, roots, leaves)
-    if nr < 0:
-        return -1, 0
-    sl = _signature(nr, ins, leaves)
-    seq = sl
-    vl = v0
-    for j in range(1, V_PROBES + 1):
-        vr = v0 + (v1 - v0) * j / V_PROBES
-        nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, vr, a, b, lip, hmin, st, roots,
-                        leaves)
+def _knots(P, ax, f1, f2, lo, hi, c1, c2, lip, st, S, row):
+    """Sorted roots in (lo, hi) of phi along axis ``ax`` on the lines whose other two
+    coordinates (on axes f1, f2) are the pairs (c1[i], c2[i]): where the solid's trace on a
+    cell face or edge changes sign. Written to S[row, 1:m+1] between S[row, 0] = lo and
+    S[row, m+1] = hi; returns m + 2, or -1 on overflow. Found by the certified line search,
+    so none is missed on a 1-Lipschitz tree."""
+    n = 0
+    for i in range(c1.shape[0]):
+        nr, _ = _line(P, ax, f1, f2, c1[i], c2[i], lo, hi, lip, st, S[R_KROOT], S[R_KLEAF], n,
+                      LINE_EXTRA)
         if nr < 0:
-            return -1, 0
-        sr = _signature(nr, ins, leaves)
-        x0 = vl
-        s0 = sl
-        while s0 != sr:               # every change in (vl, vr], left to right
-            lo_ = x0
-            hi_ = vr
-            s_hi = sr                 # the signature at hi_, kept so it is never re-solved
-            for _ in range(BREAK_STEPS):
-                mid = 0.5 * (lo_ + hi_)
-                nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, mid, a, b, lip, hmin, st,
-                                roots, leaves)
-                if nr < 0:
-                    return -1, 0
-                sm = _signature(nr, ins, leaves)
-                if sm == s0:
-                    lo_ = mid
-                else:
-                    hi_ = mid
-                    s_hi = sm
-            if m >= MAX_BREAKS - 1:
-                return -1, 0
-            brk[m] = hi_
+            return -1
+        n += nr
+    if n + 2 > S.shape[1]:
+        return -1
+    kr = S[R_KROOT]
+    for i in range(1, n):                    # insertion sort: a handful of roots
+        x = kr[i]
+        j = i - 1
+        while j >= 0 and kr[j] > x:
+            kr[j + 1] = kr[j]
+            j -= 1
+        kr[j + 1] = x
+    out = S[row]
+    out[0] = lo
+    m = 1
+    for i in range(n):
+        if lo < kr[i] < hi:
+            out[m] = kr[i]
             m += 1
-            x0 = hi_
-            s0 = s_hi
-            seq = (seq * np.int64(1000033) + s0) % np.int64(4611686018427387903)
-            if hi_ >= vr:
-                break
-        vl = vr
-        sl = sr
-    brk[m] = v1
-    m += 1
-    return m, seq
-
-
-@njit(cache=True, inline="always")
-def _piece_node(p0, p1, x, smooth):
-    """(point, weight factor) of Gauss node x in [0, 1] on piece [p0, p1]. With ``smooth``,
-    t = p0 + (p1 - p0)(3x^2 - 2x^3): square-root behaviour at a breakpoint becomes analytic."""
-    if smooth:
-        return p0 + (p1 - p0) * x * x * (3.0 - 2.0 * x), 6.0 * (p1 - p0) * x * (1.0 - x)
-    return p0 + (p1 - p0) * x, p1 - p0
+    out[m] = hi
+    return m + 1
 
 
 @njit(cache=True)
-def _cell_rules(ops, lk, lr, ob, oe, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st,
-                roots, leaves, brk, ubrk, a5, a7):
+def _vsig(P, ak, iu, iv, u, v, a, b, lip, st, S, extra_max):
+    """(signature, ok, root count, inside length) of the height line at (u, v); the roots
+    are left in S[R_ROOT], S[R_LEAF]."""
+    roots = S[R_ROOT]
+    nr, ins = _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, S[R_LEAF], 0, extra_max)
+    if nr < 0:
+        return np.uint64(0), False, -1, 0.0
+    length = 0.0
+    lo = a
+    inside = ins
+    for i in range(nr + 1):
+        hi = roots[i] if i < nr else b
+        if inside:
+            length += hi - lo
+        inside = not inside
+        lo = hi
+    return _signature(nr, ins, S[R_LEAF]), True, nr, length
+
+
+@njit(cache=True)
+def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
+    """Pieces of the v-integrand at outer coordinate u, where it is smooth.
+
+    Breakpoints: the knots (roots of phi on the cell's k-faces along v, exact: there a root
+    leaves the cell) and every other change of the line signature (a crease: the active
+    feature at a root changes; a tangency: two roots merge), found between probes and located
+    by bisection to 2^-steps of the probe interval. S[R_VBRK, 0:m] gets the breaks,
+    S[R_VFLAG, 0:m] 1.0 where a break is a tangency (square-root behaviour: the piece is
+    smoothed there). Returns (m, hash of the sequence of piece signatures); m = -1 on overflow.
+
+    Probes: the regular grid, and S[R_EXTRA, 0:nex] (sorted), where the caller has seen pieces
+    at a nearby u: a piece narrower than the grid spacing (one vanishing at a vertex inside the
+    cell) is followed there instead of being lost between grid points.
+    """
+    fa = np.empty(2)
+    fb = np.empty(2)
+    fa[0] = u
+    fa[1] = u
+    fb[0] = a
+    fb[1] = b
+    nk = _knots(P, iv, iu, ak, v0, v1, fa, fb, lip, st, S, R_VKNOT)
+    if nk < 0:
+        return -1, np.uint64(0)
+    knot = S[R_VKNOT]
+    brk = S[R_VBRK]
+    flag = S[R_VFLAG]
+    ex = S[R_EXTRA]
+    seq = np.uint64(1469598103934665603)
+    m = 0
+    brk[0] = v0
+    flag[0] = 0.0
+    m = 1
+    nudge = V_NUDGE * (v1 - v0)
+    for s in range(nk - 1):
+        s0 = knot[s]
+        s1 = knot[s + 1]
+        if s1 - s0 > 2.0 * nudge:
+            # probes: the segment's ends (nudged inside) and the regular grid points in it
+            x = s0 + nudge
+            sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, LINE_EXTRA)
+            if not ok:
+                return -1, np.uint64(0)
+            seq = _mix(seq, sx)
+            j = int((x - v0) / (v1 - v0) * V_PROBES) + 1
+            e = 0
+            while e < nex and ex[e] <= x:
+                e += 1
+            while True:
+                y = v0 + (v1 - v0) * j / V_PROBES
+                use_extra = e < nex and ex[e] < y
+                if use_extra:
+                    y = ex[e]
+                last = y >= s1 - nudge
+                if last:
+                    y = s1 - nudge
+                sy, ok, ny, ly = _vsig(P, ak, iu, iv, u, y, a, b, lip, st, S, LINE_EXTRA)
+                if not ok:
+                    return -1, np.uint64(0)
+                while sx != sy:               # every change in (x, y], left to right
+                    lo_ = x
+                    hi_ = y
+                    s_hi = sy
+                    n_hi = ny
+                    l_lo = lx
+                    l_hi = ly
+                    for it in range(steps):
+                        if it >= KINK_STEPS and abs(l_hi - l_lo) <= KINK_SLOPE * (hi_ - lo_):
+                            break             # the integrand is continuous here: a kink
+                        mid = 0.5 * (lo_ + hi_)
+                        sm, ok, nm, lm = _vsig(P, ak, iu, iv, u, mid, a, b, lip, st, S,
+                                               BISECT_EXTRA)
+                        if not ok:
+                            return -1, np.uint64(0)
+                        if sm == sx:
+                            lo_ = mid
+                            l_lo = lm
+                        else:
+                            hi_ = mid
+                            s_hi = sm
+                            n_hi = nm
+                            l_hi = lm
+                    if hi_ - brk[m - 1] <= FLICKER * (v1 - v0):
+                        # the signature flickers at a tangency (round-off decides whether
+                        # a grazing pair of roots is seen): step over the flicker
+                        x = hi_ + FLICKER * (v1 - v0)
+                        if x >= y:
+                            break
+                        sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, LINE_EXTRA)
+                        if not ok:
+                            return -1, np.uint64(0)
+                        continue
+                    if m >= S.shape[1] - 2:
+                        return -1, np.uint64(0)
+                    brk[m] = hi_
+                    flag[m] = 1.0 if n_hi != nx else 0.0
+                    m += 1
+                    x = hi_
+                    sx = s_hi
+                    nx = n_hi
+                    lx = l_hi
+                    seq = _mix(seq, sx)
+                    if hi_ >= y:
+                        break
+                x = y
+                sx = sy
+                nx = ny
+                lx = ly
+                if last:
+                    break
+                if use_extra:
+                    e += 1
+                else:
+                    j += 1
+        if s < nk - 2:                        # the knot itself closes this segment
+            if m >= S.shape[1] - 2:
+                return -1, np.uint64(0)
+            brk[m] = s1
+            flag[m] = 0.0
+            m += 1
+            seq = _mix(seq, 7)
+    brk[m] = v1
+    flag[m] = 0.0
+    return m + 1, seq
+
+
+@njit(cache=True, inline="always")
+def _piece_node(p0, p1, x, s0, s1):
+    """(point, weight factor) of Gauss node x in [0, 1] on the piece [p0, p1].
+
+    An end flagged s0 / s1 has square-root behaviour (a tangency); the map's derivative
+    vanishes there (t - p0 ~ x^2), which makes the integrand analytic again."""
+    L = p1 - p0
+    if s0 and s1:
+        return p0 + L * x * x * (3.0 - 2.0 * x), 6.0 * L * x * (1.0 - x)
+    if s0:
+        return p0 + L * x * x, 2.0 * L * x
+    if s1:
+        y = 1.0 - x
+        return p1 - L * y * y, 2.0 * L * y
+    return p0 + L * x, L
+
+
+@njit(cache=True)
+def _piece_mids(S, m, row):
+    """Midpoints of the m - 1 v-pieces in S[R_VBRK] into S[row]; returns their count."""
+    brk = S[R_VBRK]
+    out = S[row]
+    k = 0
+    for i in range(m - 1):
+        if brk[i + 1] > brk[i]:
+            out[k] = 0.5 * (brk[i] + brk[i + 1])
+            k += 1
+    return k
+
+
+@njit(cache=True)
+def _merge(S, ra, na, rb, nb, dst):
+    """Sorted merge of S[ra, 0:na] and S[rb, 0:nb] into S[dst] (dst may alias neither)."""
+    A = S[ra]
+    B = S[rb]
+    D = S[dst]
+    i = 0
+    j = 0
+    k = 0
+    cap = D.shape[0]
+    while (i < na or j < nb) and k < cap:
+        if j >= nb or (i < na and A[i] <= B[j]):
+            D[k] = A[i]
+            i += 1
+        else:
+            D[k] = B[j]
+            j += 1
+        k += 1
+    return k
+
+
+@njit(cache=True)
+def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5, a7):
     """Integrate the cut cell [clo, chi] with 5- and 7-point Gauss-Legendre rules on every
-    smooth piece in u and v (shared u-breakpoints). Returns False on an overflow."""
+    smooth piece in u and in v. Returns False on an overflow.
+
+    u-breakpoints: the knots (roots of phi along u on the four cell edges (v0|v1, a|b): a
+    face trace leaves the cell there) and every other change of the v-structure hash between
+    probes, located by bisection (smoothed: a piece appearing or vanishing behaves like a
+    power 3/2)."""
     a = clo[ak]
     b = chi[ak]
     u0 = clo[iu]
     u1 = chi[iu]
     v0 = clo[iv]
     v1 = chi[iv]
-    hmin = (b - a) / 64.0
-    # u-breakpoints: where the sequence of v-piece signatures changes
-    mu = 0
-    ubrk[mu] = u0
-    mu += 1
-    m, hl = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, u0, v0, v1, a, b, lip, hmin, st, roots,
-                    leaves, brk)
-    if m < 0:
+    ev = np.empty(4)
+    et = np.empty(4)
+    ev[0] = v0
+    ev[1] = v0
+    ev[2] = v1
+    ev[3] = v1
+    et[0] = a
+    et[1] = b
+    et[2] = a
+    et[3] = b
+    nk = _knots(P, iu, iv, ak, u0, u1, ev, et, lip, st, S, R_UKNOT)
+    if nk < 0:
         return False
-    ul = u0
-    for j in range(1, V_PROBES + 1):
-        ur = u0 + (u1 - u0) * j / V_PROBES
-        m, hr = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, ur, v0, v1, a, b, lip, hmin, st,
-                        roots, leaves, brk)
-        if m < 0:
-            return False
-        x0 = ul
-        h0 = hl
-        while h0 != hr:
-            lo_ = x0
-            hi_ = ur
-            h_hi = hr                 # the structure hash at hi_, kept so it is never redone
-            for _ in range(U_BREAK_STEPS):
-                mid = 0.5 * (lo_ + hi_)
-                m, hm = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, mid, v0, v1, a, b, lip, hmin,
-                                st, roots, leaves, brk)
-                if m < 0:
-                    return False
-                if hm == h0:
-                    lo_ = mid
-                else:
-                    hi_ = mid
-                    h_hi = hm
-            if mu >= MAX_BREAKS - 1:
+    knot = S[R_UKNOT]
+    ubrk = S[R_UBRK]
+    uflag = S[R_UFLAG]
+    ubrk[0] = u0
+    uflag[0] = 0.0
+    mu = 1
+    nudge = U_NUDGE * (u1 - u0)
+    for s in range(nk - 1):
+        s0 = knot[s]
+        s1 = knot[s + 1]
+        if s1 - s0 > 2.0 * nudge:
+            # the v-structure is probed with extra v-probes at the piece midpoints seen at the
+            # neighbouring u (rows R_MLO / R_MHI / R_MY: bracket ends and the next probe)
+            x = s0 + nudge
+            mx, hx = _vbreaks(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S, HASH_STEPS, 0)
+            if mx < 0:
                 return False
-            ubrk[mu] = hi_
+            nlo = _piece_mids(S, mx, R_MLO)
+            j = int((x - u0) / (u1 - u0) * V_PROBES) + 1
+            while True:
+                y = u0 + (u1 - u0) * j / V_PROBES
+                last = y >= s1 - nudge
+                if last:
+                    y = s1 - nudge
+                nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
+                my, hy = _vbreaks(P, ak, iu, iv, y, v0, v1, a, b, lip, st, S, HASH_STEPS, nex)
+                if my < 0:
+                    return False
+                ny = _piece_mids(S, my, R_MY)
+                while hx != hy:
+                    lo_ = x
+                    hi_ = y
+                    h_hi = hy
+                    nhi = _merge(S, R_MY, ny, R_MY, 0, R_MHI)
+                    for _ in range(U_BREAK_STEPS):
+                        mid = 0.5 * (lo_ + hi_)
+                        nex = _merge(S, R_MLO, nlo, R_MHI, nhi, R_EXTRA)
+                        mm, hm = _vbreaks(P, ak, iu, iv, mid, v0, v1, a, b, lip, st, S,
+                                          HASH_STEPS, nex)
+                        if mm < 0:
+                            return False
+                        if hm == hx:
+                            lo_ = mid
+                            nlo = _piece_mids(S, mm, R_MLO)
+                        else:
+                            hi_ = mid
+                            h_hi = hm
+                            nhi = _piece_mids(S, mm, R_MHI)
+                    if hi_ - ubrk[mu - 1] <= U_FLICKER * (u1 - u0):
+                        x = hi_ + U_FLICKER * (u1 - u0)      # step over a flicker (see _vbreaks)
+                        if x >= y:
+                            break
+                        nex = _merge(S, R_MLO, nlo, R_MHI, nhi, R_EXTRA)
+                        mx, hx = _vbreaks(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S,
+                                          HASH_STEPS, nex)
+                        if mx < 0:
+                            return False
+                        nlo = _piece_mids(S, mx, R_MLO)
+                        continue
+                    if mu >= S.shape[1] - 2:
+                        return False
+                    ubrk[mu] = hi_
+                    uflag[mu] = 1.0
+                    mu += 1
+                    x = hi_
+                    hx = h_hi
+                    nlo = _merge(S, R_MHI, nhi, R_MHI, 0, R_MLO)
+                    if hi_ >= y:
+                        break
+                x = y
+                hx = hy
+                nlo = _merge(S, R_MY, ny, R_MY, 0, R_MLO)
+                if last:
+                    break
+                j += 1
+        if s < nk - 2:
+            if mu >= S.shape[1] - 2:
+                return False
+            ubrk[mu] = s1
+            uflag[mu] = 0.0
             mu += 1
-            x0 = hi_
-            h0 = h_hi
-            if hi_ >= ur:
-                break
-        ul = ur
-        hl = hr
     ubrk[mu] = u1
+    uflag[mu] = 0.0
     mu += 1
     for rule in range(2):
         gx = g5x if rule == 0 else g7x
@@ -333,28 +640,41 @@ def _cell_rules(ops, lk, lr, ob, oe, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, l
             pu1 = ubrk[pu + 1]
             if pu1 <= pu0:
                 continue
-            smooth_u = pu > 0 or pu < mu - 2
-            for i in range(q):
-                u, wu = _piece_node(pu0, pu1, gx[i], smooth_u)
+            # the piece's centre first, then outwards both ways, each node probing where the
+            # previous one saw pieces (a narrow piece is followed towards the end it thins at)
+            um, _ = _piece_node(pu0, pu1, 0.5, False, False)
+            mc, _ = _vbreaks(P, ak, iu, iv, um, v0, v1, a, b, lip, st, S, HASH_STEPS, 0)
+            if mc < 0:
+                return False
+            nc = _piece_mids(S, mc, R_MY)
+            c = q // 2
+            for k in range(q):
+                i = c + k if c + k < q else q - 1 - k
+                if k == 0 or i == c - 1:
+                    nprev = _merge(S, R_MY, nc, R_MY, 0, R_MLO)
+                u, wu = _piece_node(pu0, pu1, gx[i], uflag[pu] != 0.0, uflag[pu + 1] != 0.0)
                 wu *= gw[i]
-                m, hv = _breaks(ops, lk, lr, ob, oe, ak, iu, iv, u, v0, v1, a, b, lip, hmin,
-                                st, roots, leaves, brk)
+                nex = _merge(S, R_MLO, nprev, R_MY, nc, R_EXTRA)
+                m, hv = _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, BREAK_STEPS, nex)
                 if m < 0:
                     return False
+                nprev = _piece_mids(S, m, R_MLO)
+                brk = S[R_VBRK]
+                flag = S[R_VFLAG]
                 for pc in range(m - 1):
                     p0 = brk[pc]
                     p1 = brk[pc + 1]
                     if p1 <= p0:
                         continue
-                    smooth_v = pc > 0 or pc < m - 2
                     for jv in range(q):
-                        v, wv = _piece_node(p0, p1, gx[jv], smooth_v)
-                        nr, ins = _line(ops, lk, lr, ob, oe, ak, iu, iv, u, v, a, b, lip,
-                                        hmin, st, roots, leaves)
+                        v, wv = _piece_node(p0, p1, gx[jv], flag[pc] != 0.0,
+                                            flag[pc + 1] != 0.0)
+                        nr, ins = _line(P, ak, iu, iv, u, v, a, b, lip, st, S[R_ROOT],
+                                        S[R_LEAF], 0, LINE_EXTRA)
                         if nr < 0:
                             return False
                         _accumulate(acc, wu * wv * gw[jv], iu, iv, ak, u, v, a, b, nr, ins,
-                                    roots, cen)
+                                    S[R_ROOT], cen)
     return True
 
 
@@ -409,10 +729,8 @@ def _top_cell(ops, lk, lr, ob, oe, clo0, chi0, lip, tol_area, g5x, g5w, g7x, g7w
               err, stats):
     """Integrate one top-level cell adaptively; adds into mom/err (10,), stats (4,)."""
     st = np.empty((K.MAX_STACK, K.STACK_COLS))
-    roots = np.empty(MAX_ROOTS)
-    leaves = np.empty(MAX_ROOTS)
-    brk = np.empty(MAX_BREAKS)
-    ubrk = np.empty(MAX_BREAKS)
+    S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
+    P = (ops, lk, lr, ob, oe)
     a5 = np.zeros(10)
     a7 = np.zeros(10)
     # explicit stack of cells: lo (3), hi (3), depth
@@ -444,8 +762,7 @@ def _top_cell(ops, lk, lr, ob, oe, clo0, chi0, lip, tol_area, g5x, g5w, g7x, g7w
         ak, iv, iu = _axis_order(gx_, gy_, gz_)
         a5[:] = 0.0
         a7[:] = 0.0
-        ok = _cell_rules(ops, lk, lr, ob, oe, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip,
-                         cen, st, roots, leaves, brk, ubrk, a5, a7)
+        ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5, a7)
         if not ok:
             stats[3] = 1.0
             return
@@ -660,10 +977,11 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
     if not (0.0 < tol <= 1e-3):
         raise ValueError(f"tol must be in (0, 1e-3], got {tol!r}")
     _check_faces(builder, root, lo_a, hi_a, max(2 * int(n), 16))
-    prog = builder.program(root)
     lip = bool(builder.is_lipschitz(root))
+    prog = builder.program(root)
     mom, err, diag = integrate_body(prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin,
                                     prog.op_end, lo_a, hi_a, int(n), lip, tol, *_G5, *_G7)
+    cen = 0.5 * (lo_a + hi_a)
     if diag[3] != 0.0:
         raise ValueError(f"a line crossed the surface more than {MAX_ROOTS} times, or a cell "
                          f"had more than {MAX_BREAKS} breakpoints: the tree is pathological "
@@ -671,7 +989,6 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
     vol = float(mom[0])
     if not vol > 0.0:
         raise ValueError("empty solid: no point of the box has phi < 0")
-    cen = 0.5 * (lo_a + hi_a)
     d = mom[1:4] / vol                       # com relative to the box centre
     com = cen + d
     S = np.array([[mom[4], mom[7], mom[8]],
