@@ -52,10 +52,13 @@ SCRATCH_ROWS = 14
 #: A line search resolves pairs of roots down to LINE_EPS of the line (stack of halvings).
 LINE_EPS = 1e-10
 LINE_STACK = 64
+#: ``lip`` (passed down every kernel) is 0 for a tree that is not 1-Lipschitz, else the cap on
+#: certifying halvings per line (see _line): LINE_EXTRA when tol < CERTIFY_TOL, else
+#: LINE_EXTRA_LOOSE. A capped line may miss a pair of roots narrower than a step; measured on
+#: the closed forms and the Pall ring that costs <= 1e-9 relative at the loose cap.
 LINE_EXTRA = 1024
-#: ... and on the lines probed while bisecting for a breakpoint, which home in on walls parallel
-#: to the line (where certifying costs ~length/distance evaluations) and only decide a side.
-BISECT_EXTRA = 1024
+LINE_EXTRA_LOOSE = 64
+CERTIFY_TOL = 1e-6
 #: Breaks closer than FLICKER (of the cell) to the previous one are a signature flickering at a
 #: tangency, not structure: they are stepped over.
 FLICKER = 1e-10
@@ -162,7 +165,7 @@ def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0, extra_max):
     otherwise a run of the other sign hidden in it is at most ``(y - x) - |phi(x)| - |phi(y)|``
     long, and the step is bisected until that bound is below ``LINE_EPS (b - a)``. Two roots closer than that (a
     grazing touch, or round-off noise where the line is tangent to the surface) annihilate:
-    the run between them carries no measurable length. The halvings are capped at LINE_EXTRA
+    the run between them carries no measurable length. The halvings are capped at ``extra_max``
     evaluations per line: a line running within d of the surface over a stretch s would need
     ~s/d of them (the tangencies that the breakpoint bisection homes in on); past the cap a
     step is accepted unproved, so a pair of roots narrower than the step then left may be
@@ -178,7 +181,7 @@ def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0, extra_max):
     stk = np.empty((LINE_STACK, 4))
     while t < b:
         step = hmin
-        if lip and abs(f) > step:
+        if lip > 0 and abs(f) > step:
             step = abs(f)
         t2 = t + step
         if t2 > b:
@@ -206,7 +209,7 @@ def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0, extra_max):
                     roots[r0 + nr] = r
                     leaves[r0 + nr] = lf
                     nr += 1
-            elif (lip and (y - x) - (abs(fx) + abs(fy)) > eps and ns + 2 <= LINE_STACK
+            elif (lip > 0 and (y - x) - (abs(fx) + abs(fy)) > eps and ns + 2 <= LINE_STACK
                   and extra < extra_max):
                 extra += 1
                 m = 0.5 * (x + y)
@@ -296,7 +299,7 @@ def _knots(P, ax, f1, f2, lo, hi, c1, c2, lip, st, S, row):
     n = 0
     for i in range(c1.shape[0]):
         nr, _ = _line(P, ax, f1, f2, c1[i], c2[i], lo, hi, lip, st, S[R_KROOT], S[R_KLEAF], n,
-                      LINE_EXTRA)
+                      lip)
         if nr < 0:
             return -1
         n += nr
@@ -381,7 +384,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
         if s1 - s0 > 2.0 * nudge:
             # probes: the segment's ends (nudged inside) and the regular grid points in it
             x = s0 + nudge
-            sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, LINE_EXTRA)
+            sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, lip)
             if not ok:
                 return -1, np.uint64(0)
             seq = _mix(seq, sx)
@@ -397,7 +400,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
                 last = y >= s1 - nudge
                 if last:
                     y = s1 - nudge
-                sy, ok, ny, ly = _vsig(P, ak, iu, iv, u, y, a, b, lip, st, S, LINE_EXTRA)
+                sy, ok, ny, ly = _vsig(P, ak, iu, iv, u, y, a, b, lip, st, S, lip)
                 if not ok:
                     return -1, np.uint64(0)
                 while sx != sy:               # every change in (x, y], left to right
@@ -412,7 +415,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
                             break             # the integrand is continuous here: a kink
                         mid = 0.5 * (lo_ + hi_)
                         sm, ok, nm, lm = _vsig(P, ak, iu, iv, u, mid, a, b, lip, st, S,
-                                               BISECT_EXTRA)
+                                               lip)
                         if not ok:
                             return -1, np.uint64(0)
                         if sm == sx:
@@ -429,7 +432,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
                         x = hi_ + FLICKER * (v1 - v0)
                         if x >= y:
                             break
-                        sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, LINE_EXTRA)
+                        sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, lip)
                         if not ok:
                             return -1, np.uint64(0)
                         continue
@@ -670,7 +673,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
                         v, wv = _piece_node(p0, p1, gx[jv], flag[pc] != 0.0,
                                             flag[pc + 1] != 0.0)
                         nr, ins = _line(P, ak, iu, iv, u, v, a, b, lip, st, S[R_ROOT],
-                                        S[R_LEAF], 0, LINE_EXTRA)
+                                        S[R_LEAF], 0, lip)
                         if nr < 0:
                             return False
                         _accumulate(acc, wu * wv * gw[jv], iu, iv, ak, u, v, a, b, nr, ins,
@@ -754,9 +757,9 @@ def _top_cell(ops, lk, lr, ob, oe, clo0, chi0, lip, tol_area, g5x, g5w, g7x, g7w
         f, gx_, gy_, gz_ = K.eval_point(ops, lk, lr, ob, oe, cx, cy, cz, st)
         hd = 0.5 * math.sqrt((chi[0] - clo[0]) ** 2 + (chi[1] - clo[1]) ** 2
                              + (chi[2] - clo[2]) ** 2)
-        if lip and f >= hd:
+        if lip > 0 and f >= hd:
             continue
-        if lip and f <= -hd:
+        if lip > 0 and f <= -hd:
             _box_moments(mom, clo, chi, cen)
             continue
         ak, iv, iu = _axis_order(gx_, gy_, gz_)
@@ -978,9 +981,10 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
         raise ValueError(f"tol must be in (0, 1e-3], got {tol!r}")
     _check_faces(builder, root, lo_a, hi_a, max(2 * int(n), 16))
     lip = bool(builder.is_lipschitz(root))
+    budget = 0 if not lip else (LINE_EXTRA if tol < CERTIFY_TOL else LINE_EXTRA_LOOSE)
     prog = builder.program(root)
     mom, err, diag = integrate_body(prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin,
-                                    prog.op_end, lo_a, hi_a, int(n), lip, tol, *_G5, *_G7)
+                                    prog.op_end, lo_a, hi_a, int(n), budget, tol, *_G5, *_G7)
     cen = 0.5 * (lo_a + hi_a)
     if diag[3] != 0.0:
         raise ValueError(f"a line crossed the surface more than {MAX_ROOTS} times, or a cell "
