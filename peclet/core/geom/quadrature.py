@@ -41,7 +41,6 @@ from . import kernels as K
 from .transforms import matrix_to_quat
 
 #: Max roots along one line, knots and breakpoints across one cell (a scratch row each).
-MAX_ROOTS = 128
 MAX_BREAKS = 128
 #: Rows of the per-thread scratch S: line roots and their features, knot search roots and
 #: features, v-knots, v-breaks and their tangency flags, u-knots, u-breaks and flags, extra
@@ -156,16 +155,17 @@ def _refine(P, ak, iu, iv, u, v, a, fa, b, fb, st):
 
 
 @njit(cache=True)
-def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0, extra_max):
+def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
     """Roots of phi along axis ak over [a, b] at (u, v), written to roots/leaves from slot r0.
 
     Returns (count, starts_inside); count = -1 on overflow. Steps are ``max(|phi|, (b-a)/64)``.
     On a 1-Lipschitz tree a step [x, y] with no sign change is *proved* root-free when
     ``|phi(x)| + |phi(y)| > y - x`` (a root s would need |phi(x)| <= s - x and |phi(y)| <= y - s);
     otherwise a run of the other sign hidden in it is at most ``(y - x) - |phi(x)| - |phi(y)|``
-    long, and the step is bisected until that bound is below ``LINE_EPS (b - a)``. Two roots closer than that (a
-    grazing touch, or round-off noise where the line is tangent to the surface) annihilate:
-    the run between them carries no measurable length. The halvings are capped at ``extra_max``
+    long, and the step is bisected until that bound is below ``LINE_EPS (b - a)``. Two roots
+    closer than that (a grazing touch, or round-off noise where the line is tangent to the
+    surface) annihilate:
+    the run between them carries no measurable length. The halvings are capped at ``lip``
     evaluations per line: a line running within d of the surface over a stretch s would need
     ~s/d of them (the tangencies that the breakpoint bisection homes in on); past the cap a
     step is accepted unproved, so a pair of roots narrower than the step then left may be
@@ -210,7 +210,7 @@ def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0, extra_max):
                     leaves[r0 + nr] = lf
                     nr += 1
             elif (lip > 0 and (y - x) - (abs(fx) + abs(fy)) > eps and ns + 2 <= LINE_STACK
-                  and extra < extra_max):
+                  and extra < lip):
                 extra += 1
                 m = 0.5 * (x + y)
                 fm = _phi(P, ak, u, v, m, iu, iv, st)
@@ -245,8 +245,9 @@ def _signature(nr, inside0, leaves):
 
 
 @njit(cache=True)
-def _accumulate(acc, w, iu, iv, ak, u, v, a, b, nr, inside0, roots, cen):
-    """Add w * (moments of the inside runs of the line) to acc (10 raw moments)."""
+def _run_moments(nr, inside0, roots, a, b, c):
+    """Moments of 1, t, t^2 (t measured from c) over the inside runs of a line on [a, b]
+    that starts inside iff inside0 and changes side at roots[0:nr]."""
     m0 = 0.0
     m1 = 0.0
     m2 = 0.0
@@ -255,13 +256,20 @@ def _accumulate(acc, w, iu, iv, ak, u, v, a, b, nr, inside0, roots, cen):
     for i in range(nr + 1):
         hi = roots[i] if i < nr else b
         if ins:
-            x0 = lo - cen[ak]
-            x1 = hi - cen[ak]
+            x0 = lo - c
+            x1 = hi - c
             m0 += x1 - x0
             m1 += 0.5 * (x1 * x1 - x0 * x0)
             m2 += (x1 * x1 * x1 - x0 * x0 * x0) / 3.0
         ins = not ins
         lo = hi
+    return m0, m1, m2
+
+
+@njit(cache=True)
+def _accumulate(acc, w, iu, iv, ak, u, v, a, b, nr, inside0, roots, cen):
+    """Add w * (moments of the inside runs of the line) to acc (10 raw moments)."""
+    m0, m1, m2 = _run_moments(nr, inside0, roots, a, b, cen[ak])
     if m0 == 0.0:
         return
     uu = u - cen[iu]
@@ -290,16 +298,18 @@ def _pair(i, j):
 
 
 @njit(cache=True)
-def _knots(P, ax, f1, f2, lo, hi, c1, c2, lip, st, S, row):
+def _knots(P, ax, f1, f2, lo, hi, c1lo, c1hi, n1, c2lo, c2hi, lip, st, S, row):
     """Sorted roots in (lo, hi) of phi along axis ``ax`` on the lines whose other two
-    coordinates (on axes f1, f2) are the pairs (c1[i], c2[i]): where the solid's trace on a
-    cell face or edge changes sign. Written to S[row, 1:m+1] between S[row, 0] = lo and
-    S[row, m+1] = hi; returns m + 2, or -1 on overflow. Found by the certified line search,
-    so none is missed on a 1-Lipschitz tree."""
+    coordinates (on axes f1, f2) are (c1, c2) for c1 in (c1lo, c1hi)[:n1] and c2 in (c2lo,
+    c2hi) -- two lines on a cell face (n1 = 1) or a cell's four edges (n1 = 2): where the
+    solid's trace on a cell face or edge changes sign. Written to S[row, 1:m+1] between
+    S[row, 0] = lo and S[row, m+1] = hi; returns m + 2, or -1 on overflow. Found by the
+    certified line search, so none is missed on a 1-Lipschitz tree."""
     n = 0
-    for i in range(c1.shape[0]):
-        nr, _ = _line(P, ax, f1, f2, c1[i], c2[i], lo, hi, lip, st, S[R_KROOT], S[R_KLEAF], n,
-                      lip)
+    for i in range(2 * n1):
+        c1 = c1lo if i < 2 else c1hi
+        c2 = c2lo if i % 2 == 0 else c2hi
+        nr, _ = _line(P, ax, f1, f2, c1, c2, lo, hi, lip, st, S[R_KROOT], S[R_KLEAF], n)
         if nr < 0:
             return -1
         n += nr
@@ -325,22 +335,14 @@ def _knots(P, ax, f1, f2, lo, hi, c1, c2, lip, st, S, row):
 
 
 @njit(cache=True)
-def _vsig(P, ak, iu, iv, u, v, a, b, lip, st, S, extra_max):
+def _vsig(P, ak, iu, iv, u, v, a, b, lip, st, S):
     """(signature, ok, root count, inside length) of the height line at (u, v); the roots
     are left in S[R_ROOT], S[R_LEAF]."""
     roots = S[R_ROOT]
-    nr, ins = _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, S[R_LEAF], 0, extra_max)
+    nr, ins = _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, S[R_LEAF], 0)
     if nr < 0:
         return np.uint64(0), False, -1, 0.0
-    length = 0.0
-    lo = a
-    inside = ins
-    for i in range(nr + 1):
-        hi = roots[i] if i < nr else b
-        if inside:
-            length += hi - lo
-        inside = not inside
-        lo = hi
+    length, _, _ = _run_moments(nr, ins, roots, a, b, 0.0)
     return _signature(nr, ins, S[R_LEAF]), True, nr, length
 
 
@@ -359,13 +361,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
     at a nearby u: a piece narrower than the grid spacing (one vanishing at a vertex inside the
     cell) is followed there instead of being lost between grid points.
     """
-    fa = np.empty(2)
-    fb = np.empty(2)
-    fa[0] = u
-    fa[1] = u
-    fb[0] = a
-    fb[1] = b
-    nk = _knots(P, iv, iu, ak, v0, v1, fa, fb, lip, st, S, R_VKNOT)
+    nk = _knots(P, iv, iu, ak, v0, v1, u, u, 1, a, b, lip, st, S, R_VKNOT)
     if nk < 0:
         return -1, np.uint64(0)
     knot = S[R_VKNOT]
@@ -373,7 +369,6 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
     flag = S[R_VFLAG]
     ex = S[R_EXTRA]
     seq = np.uint64(1469598103934665603)
-    m = 0
     brk[0] = v0
     flag[0] = 0.0
     m = 1
@@ -384,7 +379,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
         if s1 - s0 > 2.0 * nudge:
             # probes: the segment's ends (nudged inside) and the regular grid points in it
             x = s0 + nudge
-            sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, lip)
+            sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S)
             if not ok:
                 return -1, np.uint64(0)
             seq = _mix(seq, sx)
@@ -400,7 +395,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
                 last = y >= s1 - nudge
                 if last:
                     y = s1 - nudge
-                sy, ok, ny, ly = _vsig(P, ak, iu, iv, u, y, a, b, lip, st, S, lip)
+                sy, ok, ny, ly = _vsig(P, ak, iu, iv, u, y, a, b, lip, st, S)
                 if not ok:
                     return -1, np.uint64(0)
                 while sx != sy:               # every change in (x, y], left to right
@@ -414,8 +409,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
                         if it >= KINK_STEPS and abs(l_hi - l_lo) <= KINK_SLOPE * (hi_ - lo_):
                             break             # the integrand is continuous here: a kink
                         mid = 0.5 * (lo_ + hi_)
-                        sm, ok, nm, lm = _vsig(P, ak, iu, iv, u, mid, a, b, lip, st, S,
-                                               lip)
+                        sm, ok, nm, lm = _vsig(P, ak, iu, iv, u, mid, a, b, lip, st, S)
                         if not ok:
                             return -1, np.uint64(0)
                         if sm == sx:
@@ -432,7 +426,7 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
                         x = hi_ + FLICKER * (v1 - v0)
                         if x >= y:
                             break
-                        sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S, lip)
+                        sx, ok, nx, lx = _vsig(P, ak, iu, iv, u, x, a, b, lip, st, S)
                         if not ok:
                             return -1, np.uint64(0)
                         continue
@@ -536,17 +530,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
     u1 = chi[iu]
     v0 = clo[iv]
     v1 = chi[iv]
-    ev = np.empty(4)
-    et = np.empty(4)
-    ev[0] = v0
-    ev[1] = v0
-    ev[2] = v1
-    ev[3] = v1
-    et[0] = a
-    et[1] = b
-    et[2] = a
-    et[3] = b
-    nk = _knots(P, iu, iv, ak, u0, u1, ev, et, lip, st, S, R_UKNOT)
+    nk = _knots(P, iu, iv, ak, u0, u1, v0, v1, 2, a, b, lip, st, S, R_UKNOT)
     if nk < 0:
         return False
     knot = S[R_UKNOT]
@@ -673,7 +657,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
                         v, wv = _piece_node(p0, p1, gx[jv], flag[pc] != 0.0,
                                             flag[pc + 1] != 0.0)
                         nr, ins = _line(P, ak, iu, iv, u, v, a, b, lip, st, S[R_ROOT],
-                                        S[R_LEAF], 0, lip)
+                                        S[R_LEAF], 0)
                         if nr < 0:
                             return False
                         _accumulate(acc, wu * wv * gw[jv], iu, iv, ak, u, v, a, b, nr, ins,
@@ -987,7 +971,7 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
                                     prog.op_end, lo_a, hi_a, int(n), budget, tol, *_G5, *_G7)
     cen = 0.5 * (lo_a + hi_a)
     if diag[3] != 0.0:
-        raise ValueError(f"a line crossed the surface more than {MAX_ROOTS} times, or a cell "
+        raise ValueError(f"a line crossed the surface more than {MAX_BREAKS} times, or a cell "
                          f"had more than {MAX_BREAKS} breakpoints: the tree is pathological "
                          "for this box (or n is far too small)")
     vol = float(mom[0])
