@@ -84,6 +84,21 @@ def kinetic_energy(t, ke, phases, dt, path):
         return _save(fig, path)
 
 
+def _draw_probes(ax, rotations, shell, positions, colours, extent, elev, **scatter_kw):
+    """Scatter every body's probes (home-frame ``shell`` turned by its rotation and moved to
+    its position) on a 3-D axis, y up, in the box [0, Lx] x [0, Lz] x [0, top]."""
+    w = np.einsum("nij,mj->nmi", rotations, np.asarray(shell, float)) + positions[:, None, :]
+    ax.scatter(w[..., 0].ravel(), w[..., 2].ravel(), w[..., 1].ravel(),
+               c=np.repeat(colours, w.shape[1], axis=0), **scatter_kw)
+    Lx, Lz, top = extent
+    ax.set_xlim(0, Lx)
+    ax.set_ylim(0, Lz)
+    ax.set_zlim(0, top)
+    ax.set_box_aspect((Lx, Lz, top))
+    ax.set_axis_off()
+    ax.view_init(elev=elev, azim=-62)
+
+
 def pack_by_height(positions, rotations, shell, box, path):
     """The frozen pack: every body drawn as its own surface probes (``shell`` (M, 3), home
     frame) placed by its rotation (N, 3, 3) and position, coloured by the height of its centre.
@@ -97,16 +112,8 @@ def pack_by_height(positions, rotations, shell, box, path):
         fig = plt.figure(figsize=(4.2, 4.6))
         ax = fig.add_subplot(1, 1, 1, projection="3d")
         col = plt.cm.viridis(plt.Normalize(P[:, 1].min(), P[:, 1].max() + 1e-12)(P[:, 1]))
-        w = np.einsum("nij,mj->nmi", rotations, np.asarray(shell, float)) + P[:, None, :]
-        ax.scatter(w[..., 0].ravel(), w[..., 2].ravel(), w[..., 1].ravel(), s=1.2,
-                   c=np.repeat(col, w.shape[1], axis=0), depthshade=True, linewidths=0)
-        ytop = P[:, 1].max() + 0.6
-        ax.set_xlim(0, Lx)
-        ax.set_ylim(0, Lz)
-        ax.set_zlim(0, ytop)
-        ax.set_box_aspect((Lx, Lz, ytop))
-        ax.set_axis_off()
-        ax.view_init(elev=16, azim=-62)
+        _draw_probes(ax, rotations, shell, P, col, (Lx, Lz, P[:, 1].max() + 0.6), elev=16,
+                     s=1.2, depthshade=True, linewidths=0)
         ax.set_title("frozen pack (surface probes), coloured by height", fontsize=8)
         return _save(fig, path)
 
@@ -175,15 +182,8 @@ def pour_animation(frames, times, shell, box, path, n_frames=60, fps=14, probes=
             Pk, Qk = frames[sel[k]]
             R = Pack(Pk, Qk, box, 0, np.zeros((1, 3), np.int32), np.zeros((1, 16)), 0, 1,
                      probe, 1, [1, 1, 1]).rotations()
-            w = np.einsum("nij,mj->nmi", R, probe) + np.asarray(Pk, float)[:, None, :]
-            ax.scatter(w[..., 0].ravel(), w[..., 2].ravel(), w[..., 1].ravel(), s=0.8,
-                       c=np.repeat(col, len(probe), axis=0), depthshade=False)
-            ax.set_xlim(0, Lx)
-            ax.set_ylim(0, Lz)
-            ax.set_zlim(0, ymax)
-            ax.set_box_aspect((Lx, Lz, ymax))
-            ax.set_axis_off()
-            ax.view_init(elev=14, azim=-62)
+            _draw_probes(ax, R, probe, np.asarray(Pk, float), col, (Lx, Lz, ymax), elev=14,
+                         s=0.8, depthshade=False)
             ax.set_title("t = %5.2f" % times[sel[k]], fontsize=8)
             return []
 
