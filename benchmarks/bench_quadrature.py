@@ -29,7 +29,7 @@ def timed(fn):
 def main():
     b, ring = page_steps.b, page_steps.ring
     rows, res = [], {"ring": []}
-    _, cold = timed(lambda: scene_particle.build(b, ring, bounds=BOUNDS, n=8))
+    _, cold = timed(lambda: scene_particle.build(b, ring, bounds=BOUNDS, n=32))
     sp, warm = timed(lambda: scene_particle.build(b, ring, bounds=BOUNDS, n=8))
     res["build_cold_s"], res["build_warm_s"] = cold, warm
     rows.append(["scene_particle.build, Pall ring, n=8 tol=1e-6 (cold / warm)",

@@ -388,9 +388,9 @@ def closed_form(recipe: TreeRecipe):
 
 def reference_measure(builder, root, lo, hi, tol):
     """Mass properties by the reference engine's ``SceneBuilder.body_properties`` asked for
-    relative accuracy ``tol`` (its refinement knob; 8 top cells per axis): (volume, com,
+    relative accuracy ``tol`` (its refinement knob; n = 32: 8 top cells per axis): (volume, com,
     principal ascending). Raises AttributeError when the engine has no quadrature yet."""
-    res = builder.body_properties(root, lo, hi, n=8, tol=tol)
+    res = builder.body_properties(root, lo, hi, n=32, tol=tol)
 
     def get(key, *alt):
         for k in (key,) + alt:

@@ -24,12 +24,12 @@ def _solid(b):
 def test_build_small_particle():
     b = geom.SceneBuilder()
     root = _solid(b)
-    sp = scene_particle.build(b, root, bounds=([-0.5] * 3, [0.5] * 3), n=8,
+    sp = scene_particle.build(b, root, bounds=([-0.5] * 3, [0.5] * 3), n=32,
                               shell_resolution=48, target_shell_points=300)
     assert abs(len(sp.shell) - 300) <= 30
     assert np.abs(b.eval_root(sp.home_root, sp.shell)).max() <= 1e-6
     # home frame: com at the origin, inertia diagonal and ascending
-    q = b.body_properties(sp.home_root, [-0.7] * 3, [0.7] * 3, n=8, tol=1e-6)
+    q = b.body_properties(sp.home_root, [-0.7] * 3, [0.7] * 3, n=32, tol=1e-6)
     # the body has creases (box edges, box-sphere seam): quadrature reaches ~1e-5 there
     assert np.abs(q.com).max() <= 1e-5
     off = q.inertia - np.diag(np.diag(q.inertia))

@@ -64,15 +64,15 @@ def _as_bounds(bounds):
 
 
 def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points=1200,
-          density=1.0, seed=0, tol=1e-6):
+          density=1.0, seed=0, tol=1e-8):
     """Measure ``root``, reframe it to its principal frame and place shell probes.
 
     Parameters
     ----------
     bounds : (lo, hi), a box in the authoring frame that contains the solid.
-    n : int in [2, 4096], top-level quadrature cells per axis (see
-        :func:`quadrature.body_properties`); cut cells refine adaptively below it, so n = 8
-        is enough for a Pall ring and the page's n = 32 only costs more time.
+    n : int in [2, 4096], the quadrature's sampling resolution per axis of ``bounds`` (see
+        :func:`quadrature.body_properties`: ``ceil(n / 4)`` top-level cells, refined
+        adaptively). The page's n = 32 measures the Pall ring to ~1e-9 relative.
     tol : relative accuracy asked of the quadrature (its ``volume_error`` reports what was
         reached).
     shell_resolution : int in [8, 1024], marching-cubes lattice per axis for the shell.

@@ -66,8 +66,8 @@ def _home_transform(builder, root, home_root):
 CONTACT_GAP = 1e-3
 
 def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
-        mc_samples=400_000, quad_n=8, shell_resolution=112, shell_points=1200,
-        sweep=SWEEP_T, sweep_n=8, mesh_n=150, progress=True, write_figures=True,
+        mc_samples=400_000, quad_n=32, shell_resolution=112, shell_points=1200,
+        sweep=SWEEP_T, sweep_n=32, mesh_n=150, progress=True, write_figures=True,
         animation=False, particle=None, log=print):
     """Run the page end to end; returns the results dict (also written to results.json).
 

@@ -13,6 +13,8 @@ Conventions (DESIGN.md §2)
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import kernels as K
@@ -203,12 +205,17 @@ class SceneBuilder:
                       pts, phi, grad, with_grad)
         return phi, grad
 
-    def bake(self, root, origin, spacing, dims) -> np.ndarray:
+    def bake(self, root, origin, spacing, dims, band=None) -> np.ndarray:
         """phi on the lattice ``origin + (i, j, k) * spacing``, i < dims[0], ... .
 
         Returns a flat array of ``prod(dims)`` values with x fastest, so
         ``bake(...).reshape(dims, order="F")[i, j, k]`` is the value at (i, j, k). Each value is
         bitwise equal to :meth:`eval_root` at ``origin + idx * spacing``.
+
+        ``band`` (>= 0, a narrow band; needs a 1-Lipschitz root): only values with |phi| <=
+        band are guaranteed exact; the others may be a bound of the same sign with magnitude
+        > band (skipped by sphere tracing along x). With band >= the lattice cell diagonal,
+        marching cubes gives the same mesh as on the exact bake, for far fewer evaluations.
         """
         prog = self.program(root)
         o = as_translation(origin, "origin")
@@ -219,9 +226,18 @@ class SceneBuilder:
         if d.size != 3 or not all(float(v).is_integer() and v >= 1 for v in d):
             raise ValueError(f"dims must be 3 integers >= 1, got {dims!r}")
         d = d.astype(np.int64)
+        if band is None:
+            band = -1.0
+        else:
+            band = float(band)
+            if not (math.isfinite(band) and band >= 0.0):
+                raise ValueError(f"band must be a finite number >= 0 (or None), got {band!r}")
+            if not self.is_lipschitz(root):
+                raise ValueError("band needs a 1-Lipschitz root (every leaf distance-exact or "
+                                 "a Lipschitz bound); this tree is not: bake without band")
         out = np.empty(int(np.prod(d)))
         K.bake_lattice(prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end,
-                       o, sp, d, out)
+                       o, sp, d, band, out)
         return out
 
     # ------------------------------------------------------------------ mass properties

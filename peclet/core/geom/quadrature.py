@@ -44,20 +44,22 @@ from .transforms import matrix_to_quat
 MAX_BREAKS = 128
 #: Rows of the per-thread scratch S: line roots and their features, knot search roots and
 #: features, v-knots, v-breaks and their tangency flags, u-knots, u-breaks and flags, extra
-#: v-probes, and piece midpoints carried from neighbouring u (two ends and a spare).
+#: v-probes, and piece midpoints carried from neighbouring u (two ends, the next probe and
+#: the u-piece's centre).
 (R_ROOT, R_LEAF, R_KROOT, R_KLEAF, R_VKNOT, R_VBRK, R_VFLAG, R_UKNOT, R_UBRK, R_UFLAG, R_EXTRA,
- R_MLO, R_MHI, R_MY) = range(14)
-SCRATCH_ROWS = 14
+ R_MLO, R_MHI, R_MY, R_MC) = range(15)
+SCRATCH_ROWS = 15
 #: A line search resolves pairs of roots down to LINE_EPS of the line (stack of halvings).
 LINE_EPS = 1e-10
 LINE_STACK = 64
 #: ``lip`` (passed down every kernel) is 0 for a tree that is not 1-Lipschitz, else the cap on
 #: certifying halvings per line (see _line): LINE_EXTRA when tol < CERTIFY_TOL, else
 #: LINE_EXTRA_LOOSE. A capped line may miss a pair of roots narrower than a step; measured on
-#: the closed forms and the Pall ring that costs <= 1e-9 relative at the loose cap.
+#: the Pall ring (against its exact volume) that costs 3e-10 relative at the loose cap, and
+#: the full cap costs 4x the time.
 LINE_EXTRA = 1024
 LINE_EXTRA_LOOSE = 64
-CERTIFY_TOL = 1e-6
+CERTIFY_TOL = 1e-8
 #: Breaks closer than FLICKER (of the cell) to the previous one are a signature flickering at a
 #: tangency, not structure: they are stepped over.
 FLICKER = 1e-10
@@ -66,6 +68,8 @@ FLICKER = 1e-10
 #: by bisection. Only where to look moves; pieces still start at the exact knots.
 V_NUDGE = 1e-11
 U_NUDGE = 1e-9
+#: v-probes remembered per u-piece from the scan (see _cell_rules).
+SEEDS = 32
 #: Levels of refinement below the top cells.
 MAX_DEPTH = 8
 #: Signature probes across a cell (intervals).
@@ -84,6 +88,9 @@ U_BREAK_STEPS = 30
 #: While locating a u-breakpoint only the v-structure (the sequence of piece signatures)
 #: matters, not where its breaks sit: its v-bisections stop at 2^-HASH_STEPS.
 HASH_STEPS = 12
+#: Re-probes of a bisected u-break's upper end per probe interval (see _cell_rules); a cell
+#: that overflows with them is integrated again without.
+U_REPROBES = 4
 #: u-breaks closer than this to the previous one are flicker (4 u-bisection resolutions).
 U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
 
@@ -92,9 +99,9 @@ U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
 
 
 @njit(cache=True)
-def _phi(P, ak, u, v, t, iu, iv, st):
-    """phi at the point with coordinate t on axis ak, u on axis iu and v on axis iv.
-    ``P`` is the program tuple (ops, leaf_kind, leaf_reals, op_begin, op_end)."""
+def _phi_d(P, ak, u, v, t, iu, iv, st):
+    """(phi, d phi / d t) at the point with coordinate t on axis ak, u on axis iu and v on
+    axis iv. ``P`` is the program tuple (ops, leaf_kind, leaf_reals, op_begin, op_end)."""
     p0 = 0.0
     p1 = 0.0
     p2 = 0.0
@@ -116,39 +123,55 @@ def _phi(P, ak, u, v, t, iu, iv, st):
         p1 = v
     else:
         p2 = v
-    return K.eval_point(P[0], P[1], P[2], P[3], P[4], p0, p1, p2, st)[0]
+    f, g0, g1, g2 = K.eval_point(P[0], P[1], P[2], P[3], P[4], p0, p1, p2, st)
+    if ak == 0:
+        return f, g0
+    if ak == 1:
+        return f, g1
+    return f, g2
+
+
+@njit(cache=True, inline="always")
+def _phi(P, ak, u, v, t, iu, iv, st):
+    """phi at the point with coordinate t on axis ak (see :func:`_phi_d`)."""
+    return _phi_d(P, ak, u, v, t, iu, iv, st)[0]
 
 
 @njit(cache=True)
 def _refine(P, ak, iu, iv, u, v, a, fa, b, fb, st):
-    """A root of phi in [a, b] (fa, fb of opposite signs) by the Illinois method.
+    """A root of phi in [a, b] (fa, fb of opposite signs) to round-off.
 
+    Safeguarded Newton along the line (the evaluator returns the gradient with phi): a Newton
+    step is taken when it stays inside the bracket and the previous one at least halved |phi|,
+    a bisection otherwise, so the bracket always shrinks and a crease inside it (where the
+    derivative jumps) costs at most a bisection's worth of steps. Starts at the secant point.
     Returns (root, active leaf feature at the root)."""
-    side = 0
-    for it in range(200):
-        if b - a <= 4e-16 * (abs(a) + abs(b)) + 1e-300:
+    x = (a * fb - b * fa) / (fb - fa)
+    if not (a < x < b):
+        x = 0.5 * (a + b)
+    fprev = math.inf
+    for _ in range(200):
+        f, d = _phi_d(P, ak, u, v, x, iu, iv, st)
+        if f == 0.0:
+            return x, st[0, 4]
+        if (f < 0.0) == (fa < 0.0):
+            a = x
+            fa = f
+        else:
+            b = x
+            fb = f
+        eps = 4e-16 * (abs(a) + abs(b)) + 1e-300
+        if b - a <= eps:
             break
-        if it % 4 == 3:                      # a bisection now and then bounds the worst case
-            m = 0.5 * (a + b)
+        step = -f / d if d != 0.0 else math.inf
+        xn = x + step
+        if a < xn < b and abs(step) <= eps:
+            return x, st[0, 4]              # converged: the next step is round-off
+        if a < xn < b and abs(f) <= 0.5 * fprev:
+            x = xn
         else:
-            m = (a * fb - b * fa) / (fb - fa)
-            if not (a < m < b):
-                m = 0.5 * (a + b)
-        fm = _phi(P, ak, u, v, m, iu, iv, st)
-        if fm == 0.0:
-            return m, st[0, 4]
-        if (fm < 0.0) == (fa < 0.0):
-            a = m
-            fa = fm
-            if side == -1:
-                fb *= 0.5
-            side = -1
-        else:
-            b = m
-            fb = fm
-            if side == 1:
-                fa *= 0.5
-            side = 1
+            x = 0.5 * (a + b)
+        fprev = abs(f)
     r = 0.5 * (a + b)
     _phi(P, ak, u, v, r, iu, iv, st)
     return r, st[0, 4]
@@ -516,14 +539,55 @@ def _merge(S, ra, na, rb, nb, dst):
 
 
 @njit(cache=True)
-def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5, a7):
+def _keep_seeds(seeds, nseed, piece, S, row, n):
+    """Append S[row, :n] to the seeds of u-piece ``piece`` (values already there, or beyond
+    the row's capacity, are dropped)."""
+    if piece >= seeds.shape[0]:
+        return
+    k = nseed[piece]
+    for i in range(n):
+        x = S[row, i]
+        dup = False
+        for j in range(k):
+            if seeds[piece, j] == x:
+                dup = True
+                break
+        if not dup and k < seeds.shape[1]:
+            seeds[piece, k] = x
+            k += 1
+    nseed[piece] = k
+
+
+@njit(cache=True)
+def _sorted_seeds(seeds, nseed, piece, S, row):
+    """The seeds of u-piece ``piece``, sorted, into S[row]; returns their count."""
+    n = nseed[piece]
+    out = S[row]
+    for i in range(n):
+        x = seeds[piece, i]
+        j = i - 1
+        while j >= 0 and out[j] > x:
+            out[j + 1] = out[j]
+            j -= 1
+        out[j + 1] = x
+    return n
+
+
+@njit(cache=True)
+def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, seeds, nseed,
+                reprobes, a5, a7):
     """Integrate the cut cell [clo, chi] with 5- and 7-point Gauss-Legendre rules on every
     smooth piece in u and in v. Returns False on an overflow.
 
     u-breakpoints: the knots (roots of phi along u on the four cell edges (v0|v1, a|b): a
     face trace leaves the cell there) and every other change of the v-structure hash between
     probes, located by bisection (smoothed: a piece appearing or vanishing behaves like a
-    power 3/2)."""
+    power 3/2).
+
+    Seeds: the v-piece midpoints that the scan saw inside each u-piece (at its probes and on
+    either side of its bisected ends) are kept in ``seeds[piece, :nseed[piece]]`` and probed
+    again at the piece's centre: a v-piece narrower than the probe grid (a wedge at a vertex
+    inside the cell), which the scan found by its hash, is then not lost by the rule."""
     a = clo[ak]
     b = chi[ak]
     u0 = clo[iu]
@@ -539,6 +603,8 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
     ubrk[0] = u0
     uflag[0] = 0.0
     mu = 1
+    nseed[:] = 0
+    nlo = 0
     nudge = U_NUDGE * (u1 - u0)
     for s in range(nk - 1):
         s0 = knot[s]
@@ -546,11 +612,15 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
         if s1 - s0 > 2.0 * nudge:
             # the v-structure is probed with extra v-probes at the piece midpoints seen at the
             # neighbouring u (rows R_MLO / R_MHI / R_MY: bracket ends and the next probe)
+            # ... and at the segment's start, with the pieces seen at the end of the previous
+            # segment (a knot ends a face trace, not the narrow pieces that cross it)
             x = s0 + nudge
-            mx, hx = _vbreaks(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S, HASH_STEPS, 0)
+            nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
+            mx, hx = _vbreaks(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S, HASH_STEPS, nex)
             if mx < 0:
                 return False
             nlo = _piece_mids(S, mx, R_MLO)
+            _keep_seeds(seeds, nseed, mu - 1, S, R_MLO, nlo)
             j = int((x - u0) / (u1 - u0) * V_PROBES) + 1
             while True:
                 y = u0 + (u1 - u0) * j / V_PROBES
@@ -562,6 +632,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
                 if my < 0:
                     return False
                 ny = _piece_mids(S, my, R_MY)
+                nre = 0
                 while hx != hy:
                     lo_ = x
                     hi_ = y
@@ -581,6 +652,26 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
                             hi_ = mid
                             h_hi = hm
                             nhi = _piece_mids(S, mm, R_MHI)
+                    if nre < reprobes and hi_ - x > 4.0 * U_FLICKER * (u1 - u0):
+                        # hi_ was probed with the pieces tracked from a bracket end far away, so
+                        # a narrow piece followed up to it may have been missed there: probe it
+                        # again with the pieces seen just below it (2^-U_BREAK_STEPS away)
+                        nre += 1
+                        nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
+                        mr, hr = _vbreaks(P, ak, iu, iv, hi_, v0, v1, a, b, lip, st, S,
+                                          HASH_STEPS, nex)
+                        if mr < 0:
+                            return False
+                        if hi_ == y:
+                            hy = hr
+                            ny = _piece_mids(S, mr, R_MY)
+                        if hr == hx:          # no change at hi_ after all: go on from there
+                            x = hi_
+                            nlo = _piece_mids(S, mr, R_MLO)
+                            continue
+                        if hr != h_hi:
+                            h_hi = hr
+                            nhi = _piece_mids(S, mr, R_MHI)
                     if hi_ - ubrk[mu - 1] <= U_FLICKER * (u1 - u0):
                         x = hi_ + U_FLICKER * (u1 - u0)      # step over a flicker (see _vbreaks)
                         if x >= y:
@@ -594,6 +685,8 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
                         continue
                     if mu >= S.shape[1] - 2:
                         return False
+                    _keep_seeds(seeds, nseed, mu - 1, S, R_MLO, nlo)
+                    _keep_seeds(seeds, nseed, mu, S, R_MHI, nhi)
                     ubrk[mu] = hi_
                     uflag[mu] = 1.0
                     mu += 1
@@ -605,6 +698,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
                 x = y
                 hx = hy
                 nlo = _merge(S, R_MY, ny, R_MY, 0, R_MLO)
+                _keep_seeds(seeds, nseed, mu - 1, S, R_MLO, nlo)
                 if last:
                     break
                 j += 1
@@ -617,31 +711,32 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5
     ubrk[mu] = u1
     uflag[mu] = 0.0
     mu += 1
-    for rule in range(2):
-        gx = g5x if rule == 0 else g7x
-        gw = g5w if rule == 0 else g7w
-        acc = a5 if rule == 0 else a7
-        q = gx.shape[0]
-        for pu in range(mu - 1):
-            pu0 = ubrk[pu]
-            pu1 = ubrk[pu + 1]
-            if pu1 <= pu0:
-                continue
-            # the piece's centre first, then outwards both ways, each node probing where the
-            # previous one saw pieces (a narrow piece is followed towards the end it thins at)
-            um, _ = _piece_node(pu0, pu1, 0.5, False, False)
-            mc, _ = _vbreaks(P, ak, iu, iv, um, v0, v1, a, b, lip, st, S, HASH_STEPS, 0)
-            if mc < 0:
-                return False
-            nc = _piece_mids(S, mc, R_MY)
+    for pu in range(mu - 1):
+        pu0 = ubrk[pu]
+        pu1 = ubrk[pu + 1]
+        if pu1 <= pu0:
+            continue
+        # the piece's centre first, then outwards both ways, each node probing where the
+        # previous one saw pieces (a narrow piece is followed towards the end it thins at)
+        um, _ = _piece_node(pu0, pu1, 0.5, False, False)
+        ns = _sorted_seeds(seeds, nseed, pu, S, R_EXTRA)
+        mc, _ = _vbreaks(P, ak, iu, iv, um, v0, v1, a, b, lip, st, S, HASH_STEPS, ns)
+        if mc < 0:
+            return False
+        nc = _piece_mids(S, mc, R_MC)
+        for rule in range(2):
+            gx = g5x if rule == 0 else g7x
+            gw = g5w if rule == 0 else g7w
+            acc = a5 if rule == 0 else a7
+            q = gx.shape[0]
             c = q // 2
             for k in range(q):
                 i = c + k if c + k < q else q - 1 - k
                 if k == 0 or i == c - 1:
-                    nprev = _merge(S, R_MY, nc, R_MY, 0, R_MLO)
+                    nprev = _merge(S, R_MC, nc, R_MC, 0, R_MLO)
                 u, wu = _piece_node(pu0, pu1, gx[i], uflag[pu] != 0.0, uflag[pu + 1] != 0.0)
                 wu *= gw[i]
-                nex = _merge(S, R_MLO, nprev, R_MY, nc, R_EXTRA)
+                nex = _merge(S, R_MLO, nprev, R_MC, nc, R_EXTRA)
                 m, hv = _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, BREAK_STEPS, nex)
                 if m < 0:
                     return False
@@ -717,6 +812,8 @@ def _top_cell(ops, lk, lr, ob, oe, clo0, chi0, lip, tol_area, g5x, g5w, g7x, g7w
     """Integrate one top-level cell adaptively; adds into mom/err (10,), stats (4,)."""
     st = np.empty((K.MAX_STACK, K.STACK_COLS))
     S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
+    seeds = np.empty((MAX_BREAKS, SEEDS))
+    nseed = np.zeros(MAX_BREAKS, dtype=np.int64)
     P = (ops, lk, lr, ob, oe)
     a5 = np.zeros(10)
     a7 = np.zeros(10)
@@ -749,7 +846,15 @@ def _top_cell(ops, lk, lr, ob, oe, clo0, chi0, lip, tol_area, g5x, g5w, g7x, g7w
         ak, iv, iu = _axis_order(gx_, gy_, gz_)
         a5[:] = 0.0
         a7[:] = 0.0
-        ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, a5, a7)
+        ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, seeds,
+                         nseed, U_REPROBES, a5, a7)
+        if not ok:
+            # re-probing can meet a many-way flicker at a tangency and run out of breakpoint
+            # slots: the cell is done again without it
+            a5[:] = 0.0
+            a7[:] = 0.0
+            ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S,
+                             seeds, nseed, 0, a5, a7)
         if not ok:
             stats[3] = 1.0
             return
@@ -935,7 +1040,7 @@ def principal_axes(inertia, tol):
     return w, A
 
 
-def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
+def body_properties(builder, root, lo, hi, density=1.0, n=32, tol=1e-8):
     """Mass properties of the solid ``phi < 0`` of ``root`` inside the box [lo, hi].
 
     Parameters
@@ -943,10 +1048,13 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
     lo, hi : 3 finite numbers each, hi > lo; the box must contain the solid (phi >= 0 on its
         boundary, checked on a sample of the faces).
     density : > 0, mass per unit volume.
-    n : int in [2, 4096], top-level cells per axis. Cut cells refine adaptively below it;
-        a line is stepped at no more than 1/64 of its cell, so a feature thinner than that
-        along the line could be missed (for 1-Lipschitz trees the step is ``max(|phi|,
-        floor)``, and ``|phi|`` proves the skipped stretch empty).
+    n : int in [2, 4096], the sampling resolution: structure (where the solid's pieces start
+        and end across the lines) is probed on ``n`` intervals per axis of the box, i.e. on
+        ``ceil(n / 4)`` top-level cells of ``V_PROBES = 4`` probe intervals each. Cut cells
+        refine adaptively below that; along a line nothing is sampled at all (roots are
+        found by a certified search on 1-Lipschitz trees, steps of 1/64 of the cell
+        otherwise). A piece of solid narrower than ``box / n`` across both transverse axes
+        can be found late or missed; a finer ``n`` costs time roughly as ``n^2``.
     tol : in (0, 1e-3], the relative accuracy asked of the volume; cells refine until their
         error estimate is below ``tol * V_box * (d_cell / d_box)^2``.
 
@@ -967,8 +1075,9 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
     lip = bool(builder.is_lipschitz(root))
     budget = 0 if not lip else (LINE_EXTRA if tol < CERTIFY_TOL else LINE_EXTRA_LOOSE)
     prog = builder.program(root)
+    top = max(1, -(-int(n) // V_PROBES))
     mom, err, diag = integrate_body(prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin,
-                                    prog.op_end, lo_a, hi_a, int(n), budget, tol, *_G5, *_G7)
+                                    prog.op_end, lo_a, hi_a, top, budget, tol, *_G5, *_G7)
     cen = 0.5 * (lo_a + hi_a)
     if diag[3] != 0.0:
         raise ValueError(f"a line crossed the surface more than {MAX_BREAKS} times, or a cell "
@@ -997,6 +1106,7 @@ def body_properties(builder, root, lo, hi, density=1.0, n=16, tol=1e-7):
                           volume_error=e_v, moment_error=float(e_I),
                           diagnostics={"cells": int(diag[0]), "max_depth": int(diag[1]),
                                        "unconverged_cells": int(diag[2]), "n": int(n),
+                                       "top_cells": top,
                                        "tol": tol, "lipschitz": lip})
 
 

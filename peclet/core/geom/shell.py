@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 #: Probes must satisfy |phi| <= this after projection.
 PROBE_TOL = 1e-6
@@ -47,7 +48,9 @@ def surface_mesh(builder, root, resolution, lo, hi):
     hi = np.asarray(hi, dtype=np.float64).reshape(3)
     res = int(resolution)
     sp = (hi - lo) / (res - 1)
-    vals = builder.bake(root, origin=lo, spacing=sp, dims=[res] * 3)
+    # a narrow band one lattice-cell diagonal wide gives the same mesh (see SceneBuilder.bake)
+    band = float(np.linalg.norm(sp)) if builder.is_lipschitz(root) else None
+    vals = builder.bake(root, origin=lo, spacing=sp, dims=[res] * 3, band=band)
     grid = np.ascontiguousarray(vals.reshape((res, res, res), order="F"))
     if not (grid.min() < 0.0 < grid.max()):
         raise ValueError("no surface inside the box: phi does not change sign on the lattice "
@@ -71,16 +74,42 @@ def project(builder, root, points, iters=8):
 
 
 def farthest_point_order(points, count, start):
-    """Indices of ``count`` points chosen greedily farthest from those already chosen."""
-    n = len(points)
+    """Indices of ``count`` points chosen greedily farthest from those already chosen
+    (ties: the lowest index), starting at index ``start``."""
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
+    if not 1 <= int(count) <= len(pts):
+        raise ValueError(f"count must be in [1, {len(pts)}], got {count!r}")
+    if not 0 <= int(start) < len(pts):
+        raise ValueError(f"start must be in [0, {len(pts) - 1}], got {start!r}")
+    return _farthest_point_order(pts, int(count), int(start))
+
+
+@njit(cache=True)
+def _farthest_point_order(pts, count, start):
+    n = pts.shape[0]
     d = np.full(n, np.inf)
     out = np.empty(count, dtype=np.int64)
-    i = int(start)
+    i = start
     for k in range(count):
         out[k] = i
-        diff = points - points[i]
-        d = np.minimum(d, np.einsum("ij,ij->i", diff, diff))
-        i = int(np.argmax(d))
+        x = pts[i, 0]
+        y = pts[i, 1]
+        z = pts[i, 2]
+        best = -1.0
+        nxt = 0
+        for j in range(n):
+            dx = pts[j, 0] - x
+            dy = pts[j, 1] - y
+            dz = pts[j, 2] - z
+            e = dx * dx + dy * dy + dz * dz
+            if e < d[j]:
+                d[j] = e
+            if d[j] > best:
+                best = d[j]
+                nxt = j
+        i = nxt
     return out
 
 
