@@ -223,7 +223,8 @@ def leaf_eval(kind, L, j, x, y, z):
         bz = az / rz
         k0 = math.sqrt(ax * ax + ay * ay + az * az)
         k1 = math.sqrt(bx * bx + by * by + bz * bz)
-        if k0 == 0.0 or k1 == 0.0:
+        if k0 < 1e-100 or k1 < 1e-100:
+            # at (or within 1e-100 of) the centre; k1^3 below would underflow to 0
             return -min(rx, min(ry, rz)), 1.0, 0.0, 0.0, 0
         v = k0 * (k0 - 1.0) / k1
         # grad k0 = (x/r^2)/k0 = b/k0; grad k1 = (x/r^4)/k1 = (b/r^2)/k1
