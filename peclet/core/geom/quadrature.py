@@ -321,6 +321,18 @@ def _pair(i, j):
 
 
 @njit(cache=True)
+def _sort_prefix(x, n):
+    """Sort x[:n] in place (insertion sort: a handful of roots or probes)."""
+    for i in range(1, n):
+        y = x[i]
+        j = i - 1
+        while j >= 0 and x[j] > y:
+            x[j + 1] = x[j]
+            j -= 1
+        x[j + 1] = y
+
+
+@njit(cache=True)
 def _knots(P, ax, f1, f2, lo, hi, c1lo, c1hi, n1, c2lo, c2hi, lip, st, S, row):
     """Sorted roots in (lo, hi) of phi along axis ``ax`` on the lines whose other two
     coordinates (on axes f1, f2) are (c1, c2) for c1 in (c1lo, c1hi)[:n1] and c2 in (c2lo,
@@ -339,13 +351,7 @@ def _knots(P, ax, f1, f2, lo, hi, c1lo, c1hi, n1, c2lo, c2hi, lip, st, S, row):
     if n + 2 > S.shape[1]:
         return -1
     kr = S[R_KROOT]
-    for i in range(1, n):                    # insertion sort: a handful of roots
-        x = kr[i]
-        j = i - 1
-        while j >= 0 and kr[j] > x:
-            kr[j + 1] = kr[j]
-            j -= 1
-        kr[j + 1] = x
+    _sort_prefix(kr, n)
     out = S[row]
     out[0] = lo
     m = 1
@@ -562,14 +568,8 @@ def _keep_seeds(seeds, nseed, piece, S, row, n):
 def _sorted_seeds(seeds, nseed, piece, S, row):
     """The seeds of u-piece ``piece``, sorted, into S[row]; returns their count."""
     n = nseed[piece]
-    out = S[row]
-    for i in range(n):
-        x = seeds[piece, i]
-        j = i - 1
-        while j >= 0 and out[j] > x:
-            out[j + 1] = out[j]
-            j -= 1
-        out[j + 1] = x
+    S[row, :n] = seeds[piece, :n]
+    _sort_prefix(S[row], n)
     return n
 
 
