@@ -21,13 +21,20 @@ Method: an adaptive octree of cells with a Saye-style height-function rule in ea
 - **Outer (u)** Gauss-Legendre across the cell.
 - **Error estimate and adaptivity.** Every cut cell is integrated with q = 5 and q = 7 points
   per transverse axis; the reported value is the q = 7 one and |I7 - I5| its error estimate,
-  which over-estimates the q = 7 error wherever the rule converges. A cell whose estimate
-  exceeds ``tol * V_box * (d_cell / d_box)^2`` (a tolerance per unit of surface, since cut
-  cells tile a surface) is split into 8, down to ``MAX_DEPTH`` levels. The estimates of all
+  which over-estimates the q = 7 error wherever the rule converges (plus a few ulps of the
+  cell for the round-off of its roots). Refinement is global: while the estimates, measured
+  against the solid's own volume and second moments, add up to more than ``tol``, the cells
+  with the largest are split into 8 (down to ``MAX_DEPTH`` levels). The estimates of all
   accepted cells add up to the reported error.
+- **Missed structure.** A vertex of the solid poking into a cell between the probe lines
+  leaves no trace in the rule; in a cell the certificate cannot decide whose rule found no
+  surface, Newton projections from the centre and the octant centres look for it, and a
+  cell found to hold surface that way is split. A wedge thinning towards a vertex is
+  followed by its extrapolated midpoints while a u-breakpoint is bisected, and the bracket's
+  lower end is probed again with the upper end's pieces.
 
-The work is parallel over the top-level cells, each writing its own row, and the rows are
-summed in a fixed order: results are bitwise identical at any thread count.
+The work is parallel over the cells of each refinement pass, each writing its own row, and
+the rows are summed in a fixed order: results are bitwise identical at any thread count.
 """
 from __future__ import annotations
 
@@ -44,11 +51,12 @@ from .transforms import matrix_to_quat
 MAX_BREAKS = 128
 #: Rows of the per-thread scratch S: line roots and their features, knot search roots and
 #: features, v-knots, v-breaks and their tangency flags, u-knots, u-breaks and flags, extra
-#: v-probes, and piece midpoints carried from neighbouring u (two ends, the next probe and
-#: the u-piece's centre).
+#: v-probes, piece midpoints carried from neighbouring u (two ends, the next probe and the
+#: u-piece's centre), the ends' previous midpoints, two rows for extrapolated midpoints, and
+#: the midpoints at a bracket's start.
 (R_ROOT, R_LEAF, R_KROOT, R_KLEAF, R_VKNOT, R_VBRK, R_VFLAG, R_UKNOT, R_UBRK, R_UFLAG, R_EXTRA,
- R_MLO, R_MHI, R_MY, R_MC) = range(15)
-SCRATCH_ROWS = 15
+ R_MLO, R_MHI, R_MY, R_MC, R_MLP, R_MHP, R_XP, R_XT, R_MX) = range(20)
+SCRATCH_ROWS = 20
 #: A line search resolves pairs of roots down to LINE_EPS of the line (stack of halvings).
 LINE_EPS = 1e-10
 LINE_STACK = 64
@@ -88,11 +96,24 @@ U_BREAK_STEPS = 30
 #: While locating a u-breakpoint only the v-structure (the sequence of piece signatures)
 #: matters, not where its breaks sit: its v-bisections stop at 2^-HASH_STEPS.
 HASH_STEPS = 12
+#: ... but inside a u-bisection the v-pieces seen are the probes of the next step, and a
+#: piece thinning to a vertex is followed only while its midpoint is sharper than its width.
+TRACK_STEPS = 24
 #: Re-probes of a bisected u-break's upper end per probe interval (see _cell_rules); a cell
 #: that overflows with them is integrated again without.
 U_REPROBES = 4
 #: u-breaks closer than this to the previous one are flicker (4 u-bisection resolutions).
 U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
+#: Newton projection onto the surface (see _surface_in_cell): steps, and |phi| (of the cell)
+#: at which it has arrived.
+PROJECT_STEPS = 12
+PROJECT_EPS = 1e-12
+#: A cell's rule "saw surface" when its volume is this far (relative) from empty and full.
+SURFACE_FRAC = 1e-12
+#: Round-off carried by a cut cell's moments, in ulps of its moment bound (see
+#: integrate_cells).
+ROUND_ULPS = 16.0
+EPS = 2.220446049250313e-16
 
 # moment indices of the 10 raw moments (coordinates relative to the box centre)
 # 0: 1, 1: x, 2: y, 3: z, 4: xx, 5: yy, 6: zz, 7: xy, 8: xz, 9: yz
@@ -545,6 +566,29 @@ def _merge(S, ra, na, rb, nb, dst):
 
 
 @njit(cache=True)
+def _extrapolate(S, rnow, nnow, unow, rprev, nprev, uprev, u, v0, v1, k):
+    """Midpoints predicted at u by the straight line through each piece's midpoint at uprev
+    and at unow (pieces paired in order; nothing when the counts differ), appended to
+    S[R_XP] from index k (unsorted); returns the new count.
+
+    A piece that vanishes at a vertex inside the cell is a wedge in (u, v): its midpoint
+    moves along a line through the vertex, possibly faster than the wedge opens, so a probe
+    at the old midpoint misses it while the extrapolated one stays inside it."""
+    if nprev != nnow or nnow <= 0 or unow == uprev:
+        return k
+    out = S[R_XP]
+    r = (u - unow) / (unow - uprev)
+    for i in range(nnow):
+        if k >= out.shape[0]:
+            break
+        x = S[rnow, i] + (S[rnow, i] - S[rprev, i]) * r
+        if v0 < x < v1 and x != S[rnow, i]:
+            out[k] = x
+            k += 1
+    return k
+
+
+@njit(cache=True)
 def _keep_seeds(seeds, nseed, piece, S, row, n):
     """Append S[row, :n] to the seeds of u-piece ``piece`` (values already there, or beyond
     the row's capacity, are dropped)."""
@@ -606,6 +650,10 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
     nseed[:] = 0
     nlo = 0
     nudge = U_NUDGE * (u1 - u0)
+    # without re-probes (the fallback after an overflow) the scan is the plain one: hash-level
+    # breaks while bisecting, and no probe just past a located break
+    track = TRACK_STEPS if reprobes > 0 else HASH_STEPS
+    flicker = (2.0 if reprobes > 0 else 1.0) * U_FLICKER * (u1 - u0)
     for s in range(nk - 1):
         s0 = knot[s]
         s1 = knot[s + 1]
@@ -638,20 +686,57 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                     hi_ = y
                     h_hi = hy
                     nhi = _merge(S, R_MY, ny, R_MY, 0, R_MHI)
-                    for _ in range(U_BREAK_STEPS):
-                        mid = 0.5 * (lo_ + hi_)
+                    nx0 = _merge(S, R_MLO, nlo, R_MLO, 0, R_MX)
+                    for attempt in range(reprobes + 1):
+                        # each end's previous midpoints (count -1: none yet) to extrapolate
+                        nlp = -1
+                        nhp = -1
+                        ulp = lo_
+                        uhp = hi_
+                        for _ in range(U_BREAK_STEPS):
+                            mid = 0.5 * (lo_ + hi_)
+                            nxp = 0
+                            if reprobes > 0:
+                                nxp = _extrapolate(S, R_MLO, nlo, lo_, R_MLP, nlp, ulp, mid,
+                                                   v0, v1, 0)
+                                nxp = _extrapolate(S, R_MHI, nhi, hi_, R_MHP, nhp, uhp, mid,
+                                                   v0, v1, nxp)
+                            _sort_prefix(S[R_XP], nxp)
+                            nt = _merge(S, R_MLO, nlo, R_MHI, nhi, R_XT)
+                            nex = _merge(S, R_XT, nt, R_XP, nxp, R_EXTRA)
+                            mm, hm = _vbreaks(P, ak, iu, iv, mid, v0, v1, a, b, lip, st, S,
+                                              track, nex)
+                            if mm < 0:
+                                return False
+                            if hm == hx:
+                                nlp = _merge(S, R_MLO, nlo, R_MLO, 0, R_MLP)
+                                ulp = lo_
+                                lo_ = mid
+                                nlo = _piece_mids(S, mm, R_MLO)
+                            else:
+                                nhp = _merge(S, R_MHI, nhi, R_MHI, 0, R_MHP)
+                                uhp = hi_
+                                hi_ = mid
+                                h_hi = hm
+                                nhi = _piece_mids(S, mm, R_MHI)
+                        if attempt == reprobes or lo_ <= x:
+                            break
+                        # lo_ was probed with the pieces tracked from its own side, so a piece
+                        # thinning towards lo_ (a wedge closing at a vertex further down, whose
+                        # midpoint moves faster than it opens) may have been missed there: probe
+                        # lo_ with hi_'s pieces, and if the change lies below, search again
                         nex = _merge(S, R_MLO, nlo, R_MHI, nhi, R_EXTRA)
-                        mm, hm = _vbreaks(P, ak, iu, iv, mid, v0, v1, a, b, lip, st, S,
-                                          HASH_STEPS, nex)
-                        if mm < 0:
+                        mr, hr = _vbreaks(P, ak, iu, iv, lo_, v0, v1, a, b, lip, st, S,
+                                          track, nex)
+                        if mr < 0:
                             return False
-                        if hm == hx:
-                            lo_ = mid
-                            nlo = _piece_mids(S, mm, R_MLO)
-                        else:
-                            hi_ = mid
-                            h_hi = hm
-                            nhi = _piece_mids(S, mm, R_MHI)
+                        if hr == hx:
+                            break
+                        hi_ = lo_
+                        h_hi = hr
+                        nhi = _piece_mids(S, mr, R_MHI)
+                        lo_ = x
+                        nlo = _merge(S, R_MX, nx0, R_MX, 0, R_MLO)
                     if nre < reprobes and hi_ - x > 4.0 * U_FLICKER * (u1 - u0):
                         # hi_ was probed with the pieces tracked from a bracket end far away, so
                         # a narrow piece followed up to it may have been missed there: probe it
@@ -659,7 +744,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                         nre += 1
                         nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
                         mr, hr = _vbreaks(P, ak, iu, iv, hi_, v0, v1, a, b, lip, st, S,
-                                          HASH_STEPS, nex)
+                                          track, nex)
                         if mr < 0:
                             return False
                         if hi_ == y:
@@ -672,7 +757,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                         if hr != h_hi:
                             h_hi = hr
                             nhi = _piece_mids(S, mr, R_MHI)
-                    if hi_ - ubrk[mu - 1] <= U_FLICKER * (u1 - u0):
+                    if hi_ - ubrk[mu - 1] <= flicker:
                         x = hi_ + U_FLICKER * (u1 - u0)      # step over a flicker (see _vbreaks)
                         if x >= y:
                             break
@@ -695,6 +780,18 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                     nlo = _merge(S, R_MHI, nhi, R_MHI, 0, R_MLO)
                     if hi_ >= y:
                         break
+                    xs = hi_ + U_FLICKER * (u1 - u0)
+                    if reprobes > 0 and xs < y:
+                        # right at the break the structure is degenerate (two creases
+                        # crossing leave a piece of zero width), and it may hash like the
+                        # structure at y by chance: the next bracket starts just past it
+                        nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
+                        mx, hx = _vbreaks(P, ak, iu, iv, xs, v0, v1, a, b, lip, st, S,
+                                          track, nex)
+                        if mx < 0:
+                            return False
+                        x = xs
+                        nlo = _piece_mids(S, mx, R_MLO)
                 x = y
                 hx = hy
                 nlo = _merge(S, R_MY, ny, R_MY, 0, R_MLO)
@@ -807,126 +904,239 @@ def _box_moments(acc, clo, chi, cen):
 
 
 @njit(cache=True)
-def _top_cell(ops, lk, lr, ob, oe, clo0, chi0, lip, tol_area, g5x, g5w, g7x, g7w, cen, mom,
-              err, stats):
-    """Integrate one top-level cell adaptively; adds into mom/err (10,), stats (4,)."""
-    st = np.empty((K.MAX_STACK, K.STACK_COLS))
-    S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
-    seeds = np.empty((MAX_BREAKS, SEEDS))
-    nseed = np.zeros(MAX_BREAKS, dtype=np.int64)
-    P = (ops, lk, lr, ob, oe)
-    a5 = np.zeros(10)
-    a7 = np.zeros(10)
-    # explicit stack of cells: lo (3), hi (3), depth
-    cells = np.empty((8 * MAX_DEPTH + 8, 7))
-    cells[0, 0:3] = clo0
-    cells[0, 3:6] = chi0
-    cells[0, 6] = 0.0
-    top = 1
-    clo = np.empty(3)
-    chi = np.empty(3)
-    while top > 0:
-        top -= 1
+def _cell_bound(acc, clo, chi, cen, scale):
+    """Add ``scale`` times bounds on the magnitudes of the raw moments (relative to cen) of
+    ANY part of the box [clo, chi]: vol, vol * max |x|, vol * max x^2, vol * max |x y|."""
+    vol = scale * (chi[0] - clo[0]) * (chi[1] - clo[1]) * (chi[2] - clo[2])
+    m0 = max(abs(clo[0] - cen[0]), abs(chi[0] - cen[0]))
+    m1 = max(abs(clo[1] - cen[1]), abs(chi[1] - cen[1]))
+    m2 = max(abs(clo[2] - cen[2]), abs(chi[2] - cen[2]))
+    acc[0] += vol
+    acc[1] += vol * m0
+    acc[2] += vol * m1
+    acc[3] += vol * m2
+    acc[4] += vol * m0 * m0
+    acc[5] += vol * m1 * m1
+    acc[6] += vol * m2 * m2
+    acc[7] += vol * m0 * m1
+    acc[8] += vol * m0 * m2
+    acc[9] += vol * m1 * m2
+
+
+@njit(cache=True)
+def _surface_in_cell(ops, lk, lr, ob, oe, clo, chi, st):
+    """True when a Newton projection onto phi = 0, started from the cell's centre or from one
+    of its 8 octant centres, converges to a point inside the closed cell.
+
+    Used on cells of a 1-Lipschitz tree that the certificate cannot decide but whose rule
+    found no surface: a convex vertex or edge of the solid that pokes into the cell between
+    the probe lines is then seen (its nearest point to a nearby start is usually the tip
+    itself), and the cell is split until the probes resolve it. A heuristic, not a proof: a
+    start whose nearest surface point lies outside the cell proves nothing."""
+    size = max(chi[0] - clo[0], max(chi[1] - clo[1], chi[2] - clo[2]))
+    p = np.empty(3)
+    for s in range(9):
         for d in range(3):
-            clo[d] = cells[top, d]
-            chi[d] = cells[top, 3 + d]
-        depth = int(cells[top, 6])
-        stats[0] += 1.0
-        cx = 0.5 * (clo[0] + chi[0])
-        cy = 0.5 * (clo[1] + chi[1])
-        cz = 0.5 * (clo[2] + chi[2])
-        f, gx_, gy_, gz_ = K.eval_point(ops, lk, lr, ob, oe, cx, cy, cz, st)
-        hd = 0.5 * math.sqrt((chi[0] - clo[0]) ** 2 + (chi[1] - clo[1]) ** 2
-                             + (chi[2] - clo[2]) ** 2)
-        if lip > 0 and f >= hd:
-            continue
-        if lip > 0 and f <= -hd:
-            _box_moments(mom, clo, chi, cen)
-            continue
-        ak, iv, iu = _axis_order(gx_, gy_, gz_)
+            if s == 0:
+                p[d] = 0.5 * (clo[d] + chi[d])
+            else:
+                f = 0.25 if ((s - 1) >> d) & 1 == 0 else 0.75
+                p[d] = clo[d] + f * (chi[d] - clo[d])
+        for _ in range(PROJECT_STEPS):
+            f, gx, gy, gz = K.eval_point(ops, lk, lr, ob, oe, p[0], p[1], p[2], st)
+            if abs(f) <= PROJECT_EPS * size:
+                inside = True
+                for d in range(3):
+                    if p[d] < clo[d] or p[d] > chi[d]:
+                        inside = False
+                if inside:
+                    return True
+                break
+            g2 = gx * gx + gy * gy + gz * gz
+            if not (g2 > 0.0) or not math.isfinite(f):
+                break
+            p[0] -= f * gx / g2
+            p[1] -= f * gy / g2
+            p[2] -= f * gz / g2
+    return False
+
+
+@njit(cache=True)
+def _cell(P, clo, chi, lip, g5x, g5w, g7x, g7w, cen, st, S, seeds, nseed, a5, a7):
+    """Integrate one cell into a5 / a7 (its raw moments by the 5- and 7-point rules; equal,
+    and exact, for a cell the certificate decides). Returns the error estimate max |a7 - a5|,
+    ``math.inf`` when the surface was found in the cell by projection but not by the rule
+    (split it whatever the tolerance), or -1.0 on an overflow."""
+    ops, lk, lr, ob, oe = P
+    a5[:] = 0.0
+    a7[:] = 0.0
+    f, gx, gy, gz = K.eval_point(ops, lk, lr, ob, oe, 0.5 * (clo[0] + chi[0]),
+                                 0.5 * (clo[1] + chi[1]), 0.5 * (clo[2] + chi[2]), st)
+    hd = 0.5 * math.sqrt((chi[0] - clo[0]) ** 2 + (chi[1] - clo[1]) ** 2
+                         + (chi[2] - clo[2]) ** 2)
+    if lip > 0 and f >= hd:
+        return 0.0
+    if lip > 0 and f <= -hd:
+        _box_moments(a5, clo, chi, cen)
+        _box_moments(a7, clo, chi, cen)
+        return 0.0
+    ak, iv, iu = _axis_order(gx, gy, gz)
+    ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, seeds,
+                     nseed, U_REPROBES, a5, a7)
+    if not ok:
+        # re-probing can meet a many-way flicker at a tangency and run out of breakpoint
+        # slots: the cell is done again without it
         a5[:] = 0.0
         a7[:] = 0.0
-        ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, seeds,
-                         nseed, U_REPROBES, a5, a7)
-        if not ok:
-            # re-probing can meet a many-way flicker at a tangency and run out of breakpoint
-            # slots: the cell is done again without it
-            a5[:] = 0.0
-            a7[:] = 0.0
-            ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S,
-                             seeds, nseed, 0, a5, a7)
-        if not ok:
-            stats[3] = 1.0
-            return
-        est = 0.0
-        for m in range(10):
-            e = abs(a7[m] - a5[m])
-            if e > est:
-                est = e
-        # tolerance per unit of surface: (cell half-diagonal)^2 scaled
-        if est <= tol_area * hd * hd or depth >= MAX_DEPTH:
-            if depth >= MAX_DEPTH and est > tol_area * hd * hd:
-                stats[2] += 1.0
-            for m in range(10):
-                mom[m] += a7[m]
-                err[m] += abs(a7[m] - a5[m])
-            if depth > stats[1]:
-                stats[1] = depth
-            continue
-        # split into 8 children, pushed in a fixed order
-        for c in range(8):
-            for d in range(3):
-                mid = 0.5 * (clo[d] + chi[d])
-                if (c >> d) & 1:
-                    cells[top, d] = mid
-                    cells[top, 3 + d] = chi[d]
-                else:
-                    cells[top, d] = clo[d]
-                    cells[top, 3 + d] = mid
-            cells[top, 6] = depth + 1
-            top += 1
-    return
+        ok = _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S,
+                         seeds, nseed, 0, a5, a7)
+    if not ok:
+        return -1.0
+    est = 0.0
+    for m in range(10):
+        est = max(est, abs(a7[m] - a5[m]))
+    if lip > 0 and est == 0.0 and not _has_surface(a7, clo, chi):
+        if _surface_in_cell(ops, lk, lr, ob, oe, clo, chi, st):
+            return math.inf
+    return est
+
+
+@njit(cache=True, inline="always")
+def _has_surface(a7, clo, chi):
+    """Whether the rule's volume is strictly between empty and full (relative 1e-12)."""
+    vol = (chi[0] - clo[0]) * (chi[1] - clo[1]) * (chi[2] - clo[2])
+    return SURFACE_FRAC * vol < a7[0] < (1.0 - SURFACE_FRAC) * vol
 
 
 @njit(cache=True, parallel=True)
-def integrate_body(ops, lk, lr, ob, oe, lo, hi, n, lip, tol, g5x, g5w, g7x, g7w):
-    """Raw moments (10,) relative to the box centre, their error estimates (10,), and
-    diagnostics (cells visited, deepest level, cells stopped at MAX_DEPTH, overflow flag)."""
+def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
+    """Integrate every cell of ``cells`` (N, 6: lo, hi) on its own.
+
+    Returns the raw moments (N, 10: 1, x, y, z, x^2, y^2, z^2, xy, xz, yz, relative to cen)
+    by the 7-point rules, their error estimates (N, 10) and a code per cell: 0 integrated;
+    1 the surface was found in the cell by projection but not by its rule (the estimate is
+    then the bound of the whole cell: split it); -1 an overflow (too many breakpoints).
+
+    A cell's estimate is |I7 - I5| per moment, plus ROUND_ULPS ulps of the cell's moment
+    bound where the two rules differ at all (each root is exact only to a few ulps of its
+    coordinates, so the estimate still bounds the error once the rule error is below
+    round-off). Cells are independent: the results do not depend on the thread count."""
+    n = cells.shape[0]
+    mom = np.zeros((n, 10))
+    err = np.zeros((n, 10))
+    code = np.zeros(n, dtype=np.int64)
+    P = (ops, lk, lr, ob, oe)
+    for c in prange(n):
+        st = np.empty((K.MAX_STACK, K.STACK_COLS))
+        S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
+        seeds = np.empty((MAX_BREAKS, SEEDS))
+        nseed = np.zeros(MAX_BREAKS, dtype=np.int64)
+        a5 = np.zeros(10)
+        clo = cells[c, 0:3].copy()
+        chi = cells[c, 3:6].copy()
+        est = _cell(P, clo, chi, lip, g5x, g5w, g7x, g7w, cen, st, S, seeds, nseed, a5,
+                    mom[c])
+        if est < 0.0:
+            code[c] = -1
+        elif est == math.inf:
+            code[c] = 1
+            _cell_bound(err[c], clo, chi, cen, 1.0)
+        else:
+            rounded = False
+            for m in range(10):
+                err[c, m] = abs(mom[c, m] - a5[m])
+                rounded = rounded or mom[c, m] != a5[m]
+            if rounded:
+                _cell_bound(err[c], clo, chi, cen, ROUND_ULPS * EPS)
+    return mom, err, code
+
+
+def _children(cells):
+    """The 8 children of each cell of ``cells`` (N, 6), in a fixed order: (8 N, 6)."""
+    lo, hi = cells[:, 0:3], cells[:, 3:6]
+    mid = 0.5 * (lo + hi)
+    out = np.empty((cells.shape[0], 8, 6))
+    for c in range(8):
+        bits = np.array([(c >> d) & 1 for d in range(3)], dtype=bool)
+        out[:, c, 0:3] = np.where(bits, mid, lo)
+        out[:, c, 3:6] = np.where(bits, hi, mid)
+    return out.reshape(-1, 6)
+
+
+def integrate_body(prog, lo, hi, n, lip, tol):
+    """Raw moments (10,) of the solid relative to the box centre, their error estimates (10,)
+    and diagnostics (cells integrated, deepest level, cells left unconverged at MAX_DEPTH,
+    overflow flag), by global adaptive refinement.
+
+    The box is split into n^3 top-level cells, each integrated once. Each cell's error is
+    measured against the solid's own scale (volume V, raw second-moment trace T: a moment's
+    error over V, V^1/2 T^1/2 or T), and while the sum over cells exceeds ``tol``, the cells
+    with the largest errors are split until the rest add up to at most tol / 2 (cells where
+    the surface was seen but not integrated are always split), down to MAX_DEPTH levels. So
+    ``tol`` is the relative accuracy of the solid's moments, spent where the error is."""
+    P = (prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end)
     cen = 0.5 * (lo + hi)
-    ncell = n * n * n
-    rows = np.zeros((ncell, 10))
-    erows = np.zeros((ncell, 10))
-    srows = np.zeros((ncell, 4))
-    h = (hi - lo) / n
-    box_vol = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2])
-    box_hd2 = 0.25 * ((hi[0] - lo[0]) ** 2 + (hi[1] - lo[1]) ** 2 + (hi[2] - lo[2]) ** 2)
-    tol_area = tol * box_vol / box_hd2
-    for c in prange(ncell):
-        i = c % n
-        j = (c // n) % n
-        k = c // (n * n)
-        clo = np.empty(3)
-        chi = np.empty(3)
-        clo[0] = lo[0] + i * h[0]
-        clo[1] = lo[1] + j * h[1]
-        clo[2] = lo[2] + k * h[2]
-        chi[0] = hi[0] if i == n - 1 else lo[0] + (i + 1) * h[0]
-        chi[1] = hi[1] if j == n - 1 else lo[1] + (j + 1) * h[1]
-        chi[2] = hi[2] if k == n - 1 else lo[2] + (k + 1) * h[2]
-        _top_cell(ops, lk, lr, ob, oe, clo, chi, lip, tol_area, g5x, g5w, g7x, g7w, cen,
-                  rows[c], erows[c], srows[c])
-    mom = np.zeros(10)
-    err = np.zeros(10)
-    diag = np.zeros(4)
-    for c in range(ncell):
-        for m in range(10):
-            mom[m] += rows[c, m]
-            err[m] += erows[c, m]
-        diag[0] += srows[c, 0]
-        diag[1] = max(diag[1], srows[c, 1])
-        diag[2] += srows[c, 2]
-        diag[3] = max(diag[3], srows[c, 3])
-    return mom, err, diag
+    edges = [np.linspace(lo[d], hi[d], n + 1) for d in range(3)]
+    for d in range(3):
+        edges[d][-1] = hi[d]
+    k, j, i = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
+    i, j, k = i.ravel(), j.ravel(), k.ravel()              # x fastest
+    new = np.column_stack([edges[0][i], edges[1][j], edges[2][k],
+                           edges[0][i + 1], edges[1][j + 1], edges[2][k + 1]])
+    new_depth = np.zeros(len(new), dtype=np.int64)
+    cells = np.empty((0, 6))
+    depth = np.empty(0, dtype=np.int64)
+    mom = np.empty((0, 10))
+    err = np.empty((0, 10))
+    code = np.empty(0, dtype=np.int64)
+    visited = 0
+    unconverged = 0
+    while len(new):
+        m_new, e_new, c_new = integrate_cells(*P, new, lip, *_G5, *_G7, cen)
+        visited += len(new)
+        if np.any(c_new < 0):
+            return np.zeros(10), np.zeros(10), np.array([visited, 0, 0, 1.0])
+        cells = np.concatenate([cells, new])
+        depth = np.concatenate([depth, new_depth])
+        mom = np.concatenate([mom, m_new])
+        err = np.concatenate([err, e_new])
+        code = np.concatenate([code, c_new])
+        vol = mom[:, 0].sum()
+        trace = mom[:, 4:7].sum()
+        if not (vol > 0.0 and trace > 0.0):
+            # nothing seen yet: measure against the box
+            vol = float(np.prod(hi - lo))
+            trace = vol * float(np.sum((hi - lo) ** 2)) / 12.0
+        w = np.r_[1.0 / vol, np.full(3, 1.0 / math.sqrt(vol * trace)), np.full(6, 1.0 / trace)]
+        e = (err * w).max(axis=1)
+        can = depth < MAX_DEPTH
+        split = (code == 1) & can
+        rest = float(e[~split].sum())
+        if rest > tol:
+            # the largest first (ties by position: deterministic), until the rest is tol / 2
+            order = np.argsort(-e, kind="stable")
+            order = order[can[order] & ~split[order] & (e[order] > 0.0)]
+            drop = np.cumsum(e[order])
+            take = int(np.searchsorted(drop, rest - 0.5 * tol, side="left")) + 1
+            split[order[:take]] = True
+        if not split.any():
+            if rest > tol:      # what is left over tol sits at MAX_DEPTH
+                unconverged = int(np.count_nonzero(~can & (e > 0.0)))
+            break
+        keep = ~split
+        new = _children(cells[split])
+        new_depth = np.repeat(depth[split] + 1, 8)
+        cells, depth, mom, err, code = cells[keep], depth[keep], mom[keep], err[keep], code[keep]
+    diag = np.array([visited, depth.max(initial=0), unconverged, 0.0], dtype=float)
+    return _ordered_sum(mom), _ordered_sum(err), diag
+
+
+def _ordered_sum(rows):
+    """Column sums in row order (a plain loop: the same bits for the same rows)."""
+    out = np.zeros(rows.shape[1])
+    for r in rows:
+        out += r
+    return out
 
 
 def _gauss01(q):
@@ -1055,8 +1265,10 @@ def body_properties(builder, root, lo, hi, density=1.0, n=32, tol=1e-8):
         found by a certified search on 1-Lipschitz trees, steps of 1/64 of the cell
         otherwise). A piece of solid narrower than ``box / n`` across both transverse axes
         can be found late or missed; a finer ``n`` costs time roughly as ``n^2``.
-    tol : in (0, 1e-3], the relative accuracy asked of the volume; cells refine until their
-        error estimate is below ``tol * V_box * (d_cell / d_box)^2``.
+    tol : in (0, 1e-3], the relative accuracy asked of the moments: cells are refined, the
+        worst first, until their estimates add up to at most ``tol`` of the solid's volume
+        (and of its first and second moments), so ``volume_error <= tol * volume`` unless a
+        cell hit MAX_DEPTH (``diagnostics["unconverged_cells"]``).
 
     Only the SIGN of phi enters the integrand (gradients choose the height direction), so
     bound-only leaves (ellipsoid, superquadric, hollow_cylinder_shell) carry no bias; for them
@@ -1076,8 +1288,7 @@ def body_properties(builder, root, lo, hi, density=1.0, n=32, tol=1e-8):
     budget = 0 if not lip else (LINE_EXTRA if tol < CERTIFY_TOL else LINE_EXTRA_LOOSE)
     prog = builder.program(root)
     top = max(1, -(-int(n) // V_PROBES))
-    mom, err, diag = integrate_body(prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin,
-                                    prog.op_end, lo_a, hi_a, top, budget, tol, *_G5, *_G7)
+    mom, err, diag = integrate_body(prog, lo_a, hi_a, top, budget, tol)
     cen = 0.5 * (lo_a + hi_a)
     if diag[3] != 0.0:
         raise ValueError(f"a line crossed the surface more than {MAX_BREAKS} times, or a cell "
