@@ -128,8 +128,8 @@ def test_wall_sweep_against_the_tube_closed_form():
     (r,) = rows
     exact = 1 - (1 - 0.12 / 0.5) ** 2
     assert r["t_over_d"] == pytest.approx(0.12)
-    # measured: |s - exact| = 7e-8 while the quadrature reports s_err ~ 2e-13 (its estimate
-    # does not yet bound the error; reported to the quadrature's owner)
-    assert r["s"] == pytest.approx(exact, rel=1e-6) and r["s_err"] >= 0
+    # measured: |s - exact| = 7.5e-12 against s_err = 3.2e-9
+    assert r["s"] == pytest.approx(exact, rel=1e-8)
+    assert abs(r["s"] - exact) <= r["s_err"]
     assert r["eps"] == pytest.approx(1 - 0.58 * r["s"], abs=1e-15)
     assert r["eps_err"] == pytest.approx(math.hypot(r["s"] * 0.002, 0.58 * r["s_err"]))
