@@ -122,6 +122,20 @@ def test_box_at_random_rotations_1e_8():
         assert ev <= p.volume_error
 
 
+def test_tol_is_relative_to_the_solid_not_the_box():
+    """A thin ellipsoid (a bound-only leaf) in its loose bounding-ball box, 1/69 of the box's
+    volume: the volume error and its estimate stay within tol of the SOLID's volume (the
+    certificate's old counterexample: 4.5e-4 at tol 1e-4 when tol scaled with the box)."""
+    b = geom.SceneBuilder()
+    r = b.add_leaf("ellipsoid", [1.0, 0.25, 0.125])
+    V = 4 / 3 * np.pi * 0.25 * 0.125
+    for tol in (1e-4, 1e-5):
+        p = b.body_properties(r, [-1.02] * 3, [1.02] * 3, n=32, tol=tol)
+        err = abs(p.volume - V)
+        print(f"\ntol {tol:g}: relative error {err / V:.2e}, estimate {p.volume_error / V:.2e}")
+        assert err <= p.volume_error <= tol * p.volume
+
+
 @pytest.mark.parametrize("name", ["sphere", "torus"])
 def test_convergence_order_on_smooth_leaves(name):
     """Top-level cells halved (n = 24, 48, 96: 6, 12, 24 cells per axis; tol loose, so no
