@@ -104,6 +104,10 @@ TRACK_STEPS = 24
 U_REPROBES = 4
 #: u-breaks closer than this to the previous one are flicker (4 u-bisection resolutions).
 U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
+#: More than U_ZONE_BREAKS breaks in a row each closer than U_ZONE (of the cell) to the one
+#: before are a flicker zone, not structure (see _cell_rules).
+U_ZONE = 2.0 ** -20
+U_ZONE_BREAKS = 2
 #: Newton projection onto the surface (see _surface_in_cell): steps, and |phi| (of the cell)
 #: at which it has arrived.
 PROJECT_STEPS = 12
@@ -654,6 +658,9 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
     # breaks while bisecting, and no probe just past a located break
     track = TRACK_STEPS if reprobes > 0 else HASH_STEPS
     flicker = (2.0 if reprobes > 0 else 1.0) * U_FLICKER * (u1 - u0)
+    zone = U_ZONE * (u1 - u0)
+    nshort = 0
+    jump = U_FLICKER * (u1 - u0)
     for s in range(nk - 1):
         s0 = knot[s]
         s1 = knot[s + 1]
@@ -757,8 +764,15 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                         if hr != h_hi:
                             h_hi = hr
                             nhi = _piece_mids(S, mr, R_MHI)
-                    if hi_ - ubrk[mu - 1] <= flicker:
-                        x = hi_ + U_FLICKER * (u1 - u0)      # step over a flicker (see _vbreaks)
+                    gap = hi_ - ubrk[mu - 1]
+                    zoned = gap <= zone and nshort >= U_ZONE_BREAKS
+                    if gap <= flicker or zoned:
+                        # step over a flicker (see _vbreaks); inside a zone where breaks keep
+                        # coming closer than U_ZONE apart (a line family grazing the surface
+                        # along u, whose hash round-off decides), in doubling steps
+                        x = hi_ + (jump if zoned else U_FLICKER * (u1 - u0))
+                        if zoned:
+                            jump *= 2.0
                         if x >= y:
                             break
                         nex = _merge(S, R_MLO, nlo, R_MHI, nhi, R_EXTRA)
@@ -770,6 +784,8 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                         continue
                     if mu >= S.shape[1] - 2:
                         return False
+                    nshort = nshort + 1 if gap <= zone else 0
+                    jump = U_FLICKER * (u1 - u0)
                     _keep_seeds(seeds, nseed, mu - 1, S, R_MLO, nlo)
                     _keep_seeds(seeds, nseed, mu, S, R_MHI, nhi)
                     ubrk[mu] = hi_
