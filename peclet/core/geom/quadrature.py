@@ -518,6 +518,17 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
     return m + 1, seq
 
 
+@njit(cache=True)
+def _probe_mids(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, ra, na, rb, nb, dst):
+    """The v-structure at u, probed also at S[ra, :na] and S[rb, :nb] (sorted; either may
+    be dst): (count of its piece midpoints, now in S[dst], hash); count -1 on overflow."""
+    nex = _merge(S, ra, na, rb, nb, R_EXTRA)
+    m, h = _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex)
+    if m < 0:
+        return -1, h
+    return _piece_mids(S, m, dst), h
+
+
 @njit(cache=True, inline="always")
 def _piece_node(p0, p1, x, s0, s1):
     """(point, weight factor) of Gauss node x in [0, 1] on the piece [p0, p1].
@@ -670,11 +681,10 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
             # ... and at the segment's start, with the pieces seen at the end of the previous
             # segment (a knot ends a face trace, not the narrow pieces that cross it)
             x = s0 + nudge
-            nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
-            mx, hx = _vbreaks(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S, HASH_STEPS, nex)
-            if mx < 0:
+            nlo, hx = _probe_mids(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S, HASH_STEPS,
+                                  R_MLO, nlo, R_MLO, 0, R_MLO)
+            if nlo < 0:
                 return False
-            nlo = _piece_mids(S, mx, R_MLO)
             _keep_seeds(seeds, nseed, mu - 1, S, R_MLO, nlo)
             j = int((x - u0) / (u1 - u0) * V_PROBES) + 1
             while True:
@@ -682,11 +692,10 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                 last = y >= s1 - nudge
                 if last:
                     y = s1 - nudge
-                nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
-                my, hy = _vbreaks(P, ak, iu, iv, y, v0, v1, a, b, lip, st, S, HASH_STEPS, nex)
-                if my < 0:
+                ny, hy = _probe_mids(P, ak, iu, iv, y, v0, v1, a, b, lip, st, S, HASH_STEPS,
+                                     R_MLO, nlo, R_MLO, 0, R_MY)
+                if ny < 0:
                     return False
-                ny = _piece_mids(S, my, R_MY)
                 nre = 0
                 while hx != hy:
                     lo_ = x
@@ -775,12 +784,10 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                             jump *= 2.0
                         if x >= y:
                             break
-                        nex = _merge(S, R_MLO, nlo, R_MHI, nhi, R_EXTRA)
-                        mx, hx = _vbreaks(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S,
-                                          HASH_STEPS, nex)
-                        if mx < 0:
+                        nlo, hx = _probe_mids(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S,
+                                              HASH_STEPS, R_MLO, nlo, R_MHI, nhi, R_MLO)
+                        if nlo < 0:
                             return False
-                        nlo = _piece_mids(S, mx, R_MLO)
                         continue
                     if mu >= S.shape[1] - 2:
                         return False
@@ -801,13 +808,11 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                         # right at the break the structure is degenerate (two creases
                         # crossing leave a piece of zero width), and it may hash like the
                         # structure at y by chance: the next bracket starts just past it
-                        nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
-                        mx, hx = _vbreaks(P, ak, iu, iv, xs, v0, v1, a, b, lip, st, S,
-                                          track, nex)
-                        if mx < 0:
-                            return False
                         x = xs
-                        nlo = _piece_mids(S, mx, R_MLO)
+                        nlo, hx = _probe_mids(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S,
+                                              track, R_MLO, nlo, R_MLO, 0, R_MLO)
+                        if nlo < 0:
+                            return False
                 x = y
                 hx = hy
                 nlo = _merge(S, R_MY, ny, R_MY, 0, R_MLO)
