@@ -69,6 +69,17 @@ def main():
                                   seconds=dt))
             rows.append([f"{name} (offset, rotated) tol={tol:g}", f"{dt:.2f} s",
                          f"rel error {err:.1e}, estimate {p.volume_error / exact:.1e}"])
+    from test_quadrature import _TILTED_TUBE, _TURNED_TUBE, _tube_properties
+    for name, tube in (("tube turned about z (grazing lines)", _TURNED_TUBE),
+                       ("tube tilted 11 deg (rim outline touching)", _TILTED_TUBE)):
+        res[name] = []
+        for tol in (1e-3, 1e-5):
+            (p, exact), dt = timed(lambda: _tube_properties(tube, tol))
+            err = abs(p.volume - exact) / exact
+            res[name].append(dict(tol=tol, rel_error=err, rel_estimate=p.volume_error / exact,
+                                  seconds=dt))
+            rows.append([f"{name} tol={tol:g}", f"{dt:.2f} s",
+                         f"rel error {err:.1e}, estimate {p.volume_error / exact:.1e}"])
     print(table(rows, ["measurement", "time", "result"]))
     print("written", write("quadrature", res))
 

@@ -151,6 +151,79 @@ def test_thin_torus_grazing_the_lines_does_not_overflow():
     assert abs(p.volume - V) <= p.volume_error <= 1e-4 * p.volume
 
 
+# A tube (about its local y) turned by 62.7 deg about z: its axis lies in the xy-plane, so
+# every height line along x at the height of its lowest generator is tangent to it.
+_TURNED_TUBE = dict(params=[0.6368940005285078, 1.2611198291450472, 0.4944413830781477],
+                    translation=[0.0, 0.0, 0.5129933867069587],
+                    rotation=[0.0, 0.0, -0.5206242746615345, 0.853785900933689],
+                    scale=0.5315432500458759)
+
+
+# A tube tilted by 11 deg: the outline of its rim touches the outline of its wall.
+_TILTED_TUBE = dict(params=[0.4770518707180124, 1.1, 0.2029602611804964],
+                    translation=[-0.13108200053195662, 0.6152817137288964, 0.8829503365574594],
+                    rotation=[0.04837772714659089, -0.08145439001203753, -0.03595669693433712,
+                              0.9948526995537927], scale=0.9374356473065785)
+
+
+def _tube_properties(t, tol):
+    """(body_properties in the bounding-ball box, exact volume) of a tube dict above."""
+    b = geom.SceneBuilder()
+    r = b.add_leaf("hollow_cylinder", t["params"], translation=t["translation"],
+                   rotation=t["rotation"], scale=t["scale"])
+    c, rad, _ = b.node_bound(r)
+    r_out, h, thick = t["params"]
+    V = np.pi * h * (r_out ** 2 - (r_out - thick) ** 2) * t["scale"] ** 3
+    return b.body_properties(r, c - 1.02 * rad, c + 1.02 * rad, n=32, tol=tol), V
+
+
+def test_near_tangent_line_finds_its_run_past_the_halving_cap():
+    """A line at depth d below a tangency with a surface of radius R needs ~sqrt(R / d)
+    certifying halvings; past the cap (64 at loose tol) its short run used to be seen or not
+    depending on where the cap fell, so the line structure flickered across a band 1e-7 wide
+    and one quadrature of the turned tube below took 30 s. Every line at depth 1e-12 to 1e-6
+    whose tangent point lies in the span must now report its two roots."""
+    from peclet.core.geom import kernels as K
+    from peclet.core.geom import quadrature as Q
+    t = _TURNED_TUBE
+    b = geom.SceneBuilder()
+    r = b.add_leaf("hollow_cylinder", t["params"], translation=t["translation"],
+                   rotation=t["rotation"], scale=t["scale"])
+    prog = b.program(r)
+    P = (prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end)
+    st = np.empty((K.MAX_STACK, K.STACK_COLS))
+    z_low = t["translation"][2] - t["params"][0] * t["scale"]
+    axis = quat_to_matrix(np.array(t["rotation"]) / np.linalg.norm(t["rotation"]))[:, 1]
+    x0, x1 = -0.364, -0.243                      # the span of the lines, along x
+    half = 0.5 * t["params"][1] * t["scale"]
+    missed = []
+    checked = 0
+    for depth in (1e-12, 1e-10, 1e-8, 1e-6):
+        for y in np.linspace(-0.18, -0.13, 21):
+            s = y / axis[1]                      # the tangent point (s * axis, z_low)
+            if not (x0 + 1e-3 < s * axis[0] < x1 - 1e-3 and abs(s) < half - 1e-3):
+                continue
+            roots, leaves = np.empty(128), np.empty(128)
+            nr, inside = Q._line(P, 0, 2, 1, z_low + depth, y, x0, x1, Q.LINE_EXTRA_LOOSE, st,
+                                 roots, leaves, 0)
+            checked += 1
+            if nr != 2 or inside:
+                missed.append((depth, y, nr))
+    assert checked >= 20 and not missed, (checked, missed)
+
+
+def test_turned_and_tilted_tubes_within_tol():
+    """The two tubes of the certificate's slowest examples (a grazing line family; a rim
+    whose outline touches its wall's, which makes a flicker zone far wider than U_ZONE) are
+    integrated within tol of their exact volumes, each estimate bounding its error. Their
+    times are in benchmarks/bench_quadrature.py."""
+    for t in (_TURNED_TUBE, _TILTED_TUBE):
+        p, V = _tube_properties(t, 1e-5)
+        print(f"\ntube: relative error {abs(p.volume - V) / V:.2e}, "
+              f"estimate {p.volume_error / V:.2e}")
+        assert abs(p.volume - V) <= p.volume_error <= 1e-5 * p.volume
+
+
 @pytest.mark.parametrize("name", ["sphere", "torus"])
 def test_convergence_order_on_smooth_leaves(name):
     """Top-level cells halved (n = 24, 48, 96: 6, 12, 24 cells per axis; tol loose, so no

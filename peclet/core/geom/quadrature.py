@@ -68,6 +68,10 @@ LINE_STACK = 64
 LINE_EXTRA = 1024
 LINE_EXTRA_LOOSE = 64
 CERTIFY_TOL = 1e-8
+#: A step left unproved is searched for an extremum of the other sign (see _dip): at most
+#: DIP_STEPS evaluations each, DIP_BUDGET per line.
+DIP_STEPS = 30
+DIP_BUDGET = 256
 #: Breaks closer than FLICKER (of the cell) to the previous one are a signature flickering at a
 #: tangency, not structure: they are stepped over.
 FLICKER = 1e-10
@@ -106,8 +110,13 @@ U_REPROBES = 4
 U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
 #: More than U_ZONE_BREAKS breaks in a row each closer than U_ZONE (of the cell) to the one
 #: before are a flicker zone, not structure (see _cell_rules).
-U_ZONE = 2.0 ** -20
+U_ZONE = 2.0 ** -16
 U_ZONE_BREAKS = 2
+#: ... and a zone's step-over doubles up to U_ZONE_MAX (of the cell). Where two break curves
+#: of the v-structure touch (the outline of a rim tangent to the outline of its wall), the
+#: piece between them is thinner than any resolution over a stretch of u: its flicker zone can
+#: be far wider than U_ZONE.
+U_ZONE_MAX = 2.0 ** -12
 #: Newton projection onto the surface (see _surface_in_cell): steps, and |phi| (of the cell)
 #: at which it has arrived.
 PROJECT_STEPS = 12
@@ -203,6 +212,60 @@ def _refine(P, ak, iu, iv, u, v, a, fa, b, fb, st):
 
 
 @njit(cache=True)
+def _add_root(P, ak, iu, iv, u, v, x, fx, y, fy, st, roots, leaves, r0, nr, eps):
+    """Refine the root in [x, y] (fx, fy of opposite signs) and append it to roots/leaves
+    after slot r0 + nr; a root within ``eps`` of the previous one annihilates with it (a
+    grazing pair, or round-off noise at a tangency: the run between them carries no
+    measurable length). Returns the new count, -1 on overflow."""
+    if r0 + nr >= roots.shape[0]:
+        return -1
+    r, lf = _refine(P, ak, iu, iv, u, v, x, fx, y, fy, st)
+    if nr > 0 and r - roots[r0 + nr - 1] <= eps:
+        return nr - 1
+    roots[r0 + nr] = r
+    leaves[r0 + nr] = lf
+    return nr + 1
+
+
+@njit(cache=True)
+def _dip(P, ak, iu, iv, u, v, x, fx, dx, y, fy, dy, st, eps):
+    """Search [x, y], whose ends have the same sign and slopes pointing at an extremum
+    inside (phi falling then rising outside the solid, the reverse inside), for a point of
+    the other sign: regula falsi on d phi / dt (a tangency's phi is locally a parabola, so
+    one or two steps land on its extremum). Returns (t, phi(t), evaluations); phi(t) has
+    fx's sign when none was found within DIP_STEPS evaluations."""
+    sgn = 1.0 if fx >= 0.0 else -1.0
+    p = x
+    dp = sgn * dx
+    q = y
+    dq = sgn * dy
+    t = x
+    f = fx
+    tprev = math.inf
+    n = 0
+    while n < DIP_STEPS:
+        t = p - dp * (q - p) / (dq - dp)
+        if not (p < t < q) or n % 4 == 3:
+            t = 0.5 * (p + q)       # a bisection every fourth step: the bracket shrinks
+        if abs(t - tprev) <= eps:
+            break                   # converged on the extremum
+        f, d = _phi_d(P, ak, u, v, t, iu, iv, st)
+        n += 1
+        if (f < 0.0) != (fx < 0.0):
+            break
+        if sgn * d < 0.0:
+            p = t
+            dp = sgn * d
+        else:
+            q = t
+            dq = sgn * d
+        if q - p <= eps:
+            break
+        tprev = t
+    return t, f, n
+
+
+@njit(cache=True)
 def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
     """Roots of phi along axis ak over [a, b] at (u, v), written to roots/leaves from slot r0.
 
@@ -211,22 +274,22 @@ def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
     ``|phi(x)| + |phi(y)| > y - x`` (a root s would need |phi(x)| <= s - x and |phi(y)| <= y - s);
     otherwise a run of the other sign hidden in it is at most ``(y - x) - |phi(x)| - |phi(y)|``
     long, and the step is bisected until that bound is below ``LINE_EPS (b - a)``. Two roots
-    closer than that (a grazing touch, or round-off noise where the line is tangent to the
-    surface) annihilate:
-    the run between them carries no measurable length. The halvings are capped at ``lip``
-    evaluations per line: a line running within d of the surface over a stretch s would need
-    ~s/d of them (the tangencies that the breakpoint bisection homes in on); past the cap a
-    step is accepted unproved, so a pair of roots narrower than the step then left may be
-    missed on such a line. Without the Lipschitz property
-    the steps are uniform and a pair of roots closer than (b - a)/64 can be missed."""
+    closer than that annihilate (see _add_root). The halvings are capped at ``lip``
+    evaluations per line: a line running at depth d past a tangency with a surface of radius
+    R would need ~sqrt(R / d) of them. A step left unproved (past the cap; every step of a
+    tree that is not 1-Lipschitz) whose end slopes point at an extremum inside is searched
+    for it (:func:`_dip`, at most DIP_BUDGET evaluations per line), so the short run of a
+    near-tangent line is still found: without that, whether it is seen would depend on where
+    the cap falls, and the line structure would flicker across a whole band of lines."""
     hmin = (b - a) / 64.0
     eps = LINE_EPS * (b - a)
     t = a
-    f = _phi(P, ak, u, v, t, iu, iv, st)
+    f, df = _phi_d(P, ak, u, v, t, iu, iv, st)
     inside0 = f < 0.0
     nr = 0
     extra = 0
-    stk = np.empty((LINE_STACK, 4))
+    dips = 0
+    stk = np.empty((LINE_STACK, 6))
     while t < b:
         step = hmin
         if lip > 0 and abs(f) > step:
@@ -234,45 +297,66 @@ def _line(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
         t2 = t + step
         if t2 > b:
             t2 = b
-        f2 = _phi(P, ak, u, v, t2, iu, iv, st)
-        # sub-intervals of [t, t2] still to examine, processed left to right
+        f2, d2 = _phi_d(P, ak, u, v, t2, iu, iv, st)
+        # sub-intervals of [t, t2] still to examine, processed left to right:
+        # (x, phi(x), y, phi(y), phi'(x), phi'(y))
         ns = 1
         stk[0, 0] = t
         stk[0, 1] = f
         stk[0, 2] = t2
         stk[0, 3] = f2
+        stk[0, 4] = df
+        stk[0, 5] = d2
         while ns > 0:
             ns -= 1
             x = stk[ns, 0]
             fx = stk[ns, 1]
             y = stk[ns, 2]
             fy = stk[ns, 3]
+            dx = stk[ns, 4]
+            dy = stk[ns, 5]
             if (fx < 0.0) != (fy < 0.0):
-                if r0 + nr >= roots.shape[0]:
+                nr = _add_root(P, ak, iu, iv, u, v, x, fx, y, fy, st, roots, leaves, r0, nr,
+                               eps)
+                if nr < 0:
                     return -1, inside0
-                r, lf = _refine(P, ak, iu, iv, u, v, x, fx, y, fy, st)
-                if nr > 0 and r - roots[r0 + nr - 1] <= eps:
-                    nr -= 1                    # a grazing pair (or round-off noise at a
-                else:                          # tangency): the two roots annihilate
-                    roots[r0 + nr] = r
-                    leaves[r0 + nr] = lf
-                    nr += 1
-            elif (lip > 0 and (y - x) - (abs(fx) + abs(fy)) > eps and ns + 2 <= LINE_STACK
-                  and extra < lip):
+                continue
+            unproved = lip == 0 or (y - x) - (abs(fx) + abs(fy)) > eps
+            if not unproved:
+                continue
+            if lip > 0 and ns + 2 <= LINE_STACK and extra < lip:
                 extra += 1
                 m = 0.5 * (x + y)
-                fm = _phi(P, ak, u, v, m, iu, iv, st)
+                fm, dm = _phi_d(P, ak, u, v, m, iu, iv, st)
                 stk[ns, 0] = m                 # right half first: the left is popped next
                 stk[ns, 1] = fm
                 stk[ns, 2] = y
                 stk[ns, 3] = fy
+                stk[ns, 4] = dm
+                stk[ns, 5] = dy
                 stk[ns + 1, 0] = x
                 stk[ns + 1, 1] = fx
                 stk[ns + 1, 2] = m
                 stk[ns + 1, 3] = fm
+                stk[ns + 1, 4] = dx
+                stk[ns + 1, 5] = dm
                 ns += 2
+                continue
+            sgn = 1.0 if fx >= 0.0 else -1.0
+            if dips < DIP_BUDGET and sgn * dx < 0.0 and sgn * dy > 0.0:
+                tm, fm, used = _dip(P, ak, iu, iv, u, v, x, fx, dx, y, fy, dy, st, eps)
+                dips += used
+                if (fm < 0.0) != (fx < 0.0):
+                    nr = _add_root(P, ak, iu, iv, u, v, x, fx, tm, fm, st, roots, leaves, r0,
+                                   nr, eps)
+                    if nr >= 0:
+                        nr = _add_root(P, ak, iu, iv, u, v, tm, fm, y, fy, st, roots, leaves,
+                                       r0, nr, eps)
+                    if nr < 0:
+                        return -1, inside0
         t = t2
         f = f2
+        df = d2
     return nr, inside0
 
 
@@ -672,6 +756,7 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
     zone = U_ZONE * (u1 - u0)
     nshort = 0
     jump = U_FLICKER * (u1 - u0)
+    zone_max = U_ZONE_MAX * (u1 - u0)
     for s in range(nk - 1):
         s0 = knot[s]
         s1 = knot[s + 1]
@@ -774,14 +859,16 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                             h_hi = hr
                             nhi = _piece_mids(S, mr, R_MHI)
                     gap = hi_ - ubrk[mu - 1]
-                    zoned = gap <= zone and nshort >= U_ZONE_BREAKS
+                    # a zone lasts while its breaks keep following the step-over (they are
+                    # its flicker, as far apart as the step), however wide it grows
+                    zoned = nshort >= U_ZONE_BREAKS and (gap <= zone or gap <= 4.0 * jump)
                     if gap <= flicker or zoned:
                         # step over a flicker (see _vbreaks); inside a zone where breaks keep
                         # coming closer than U_ZONE apart (a line family grazing the surface
                         # along u, whose hash round-off decides), in doubling steps
                         x = hi_ + (jump if zoned else U_FLICKER * (u1 - u0))
                         if zoned:
-                            jump *= 2.0
+                            jump = min(2.0 * jump, zone_max)
                         if x >= y:
                             break
                         nlo, hx = _probe_mids(P, ak, iu, iv, x, v0, v1, a, b, lip, st, S,
