@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
 
 import pytest
@@ -59,6 +60,26 @@ def pytest_configure(config):
         register_profiles()
         # loaded only when asked, so plain runs keep the project's own Hypothesis settings
         settings.load_profile("peclet-" + (profile or "dev"))
+        from .properties import set_progress
+        set_progress(lambda *a: _report_progress(config, *a))
+
+
+def pytest_unconfigure(config):
+    props = sys.modules.get("peclet_verify.properties")   # not imported: nothing to undo
+    if props is not None:
+        props.set_progress(None)
+
+
+def _report_progress(config, name, examples, max_examples, seconds):
+    """One line on the terminal, past output capture, for a long certificate (nightly)."""
+    tr = config.pluginmanager.get_plugin("terminalreporter")
+    capman = config.pluginmanager.get_plugin("capturemanager")
+    if tr is None or capman is None:
+        return
+    with capman.global_and_fixture_disabled():
+        left = seconds / examples * (max_examples - examples)
+        tr.write_line(f"  {name}: {examples} / {max_examples} examples, "
+                      f"{seconds / 60:.1f} min, about {left / 60:.0f} min left")
 
 
 def pytest_collection_modifyitems(config, items):

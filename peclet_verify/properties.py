@@ -17,6 +17,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 from contextlib import contextmanager, nullcontext
 from dataclasses import asdict, dataclass, field
 from typing import Callable, Optional
@@ -111,6 +112,21 @@ def _fixed_constant_pool():
         cache.clear()
 
 
+#: Called as ``progress(name, examples, max_examples, seconds)`` at every tenth of a long search
+#: (see :func:`set_progress`); None: silent.
+_progress: Optional[Callable] = None
+#: Searches with fewer examples than this report no progress.
+PROGRESS_MIN_EXAMPLES = 100
+
+
+def set_progress(callback: Optional[Callable]) -> None:
+    """Report the progress of long searches (``max_examples >= PROGRESS_MIN_EXAMPLES``) to
+    ``callback(name, examples, max_examples, seconds)`` at every tenth of ``max_examples``;
+    None turns it off. The pytest plugin points it at the terminal."""
+    global _progress
+    _progress = callback
+
+
 def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
            describe: Callable = repr) -> PropertyResult:
     """Run ``check(example) -> PropertyResult`` over ``strategy`` with Hypothesis.
@@ -129,6 +145,11 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
     """
     seen = {"n": 0, "applicable": 0, "worst": None, "last_fail": None, "unavailable": None,
             "first_fail_at": None, "calls": 0}
+    effective = settings if settings is not None else hypothesis_settings.default
+    label = name or getattr(check, "__qualname__", "property")
+    every = (effective.max_examples // 10
+             if _progress is not None and effective.max_examples >= PROGRESS_MIN_EXAMPLES else 0)
+    start = time.perf_counter()
 
     def run(example):
         res = check(example)
@@ -136,6 +157,8 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
             seen["unavailable"] = res
             return
         seen["calls"] += 1
+        if every and seen["calls"] % every == 0 and seen["first_fail_at"] is None:
+            _progress(label, seen["calls"], effective.max_examples, time.perf_counter() - start)
         before_failure = seen["first_fail_at"] is None
         seen["n"] += before_failure
         if res.status == NOT_APPLICABLE:
@@ -152,7 +175,6 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
             seen["last_fail"] = (example, res)
             raise AssertionError(f"{res.name} failed:\n{res.counterexample}")
 
-    effective = settings if settings is not None else hypothesis_settings.default
     # no explain phase: it re-runs the failing input hundreds of times to annotate Hypothesis's
     # own report, which search never shows (the counterexample is describe(shrunk input))
     test = hypothesis_settings(effective, phases=[p for p in effective.phases
@@ -162,7 +184,6 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
         # derandomised: the seed comes from the certificate's name (Hypothesis would hash the
         # source of ``run`` above, the same for every certificate and changed by any edit
         # here) and the examples must not depend on what the process imported before
-        label = name or getattr(check, "__qualname__", "property")
         test = seed(int.from_bytes(hashlib.sha256(label.encode()).digest()[:8], "little"))(test)
         pool = _fixed_constant_pool()
     try:

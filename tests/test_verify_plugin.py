@@ -57,6 +57,31 @@ def test_failing_certificate_exits_nonzero_with_snippet(tmp_path):
     assert "from peclet.core.geom import SceneBuilder" in out
 
 
+LONG = textwrap.dedent('''
+    import pytest
+    from hypothesis import settings, strategies as st
+    from peclet_verify import properties as P
+
+    @pytest.mark.peclet_certify
+    def test_long(peclet_certificate):
+        peclet_certificate(P.search(lambda x: P.PropertyResult("long", True, 1, float(x), "x"),
+                                    st.integers(0, 10 ** 9), name="a long one",
+                                    settings=settings(max_examples=100, deadline=None)))
+''')
+
+
+def test_long_certificate_reports_progress_past_capture(tmp_path):
+    """A search of >= 100 examples prints a line at every tenth, through pytest's capture."""
+    (tmp_path / "test_long.py").write_text(LONG)
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                           "--peclet-certify"], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    lines = [ln.strip() for ln in proc.stdout.splitlines() if ln.strip().startswith("a long one:")]
+    assert [ln.split(" examples")[0] for ln in lines] == [
+        f"a long one: {k} / 100" for k in range(10, 101, 10)], proc.stdout
+
+
 def test_bad_backend_spec_is_a_usage_error(tmp_path):
     proc = _run(tmp_path, "--peclet-certify", "--peclet-backend", "nope")
     assert proc.returncode != 0

@@ -109,7 +109,9 @@ U_REPROBES = 4
 #: u-breaks closer than this to the previous one are flicker (4 u-bisection resolutions).
 U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
 #: More than U_ZONE_BREAKS breaks in a row each closer than U_ZONE (of the cell) to the one
-#: before are a flicker zone, not structure (see _cell_rules).
+#: before are a flicker zone, not structure (see _cell_rules). A thin torus gave a steady run
+#: of breaks 2^-20 of the cell apart, just over the first threshold tried; a real break the
+#: zone steps over leaves a kink inside a u-piece, which its rules' estimate then reports.
 U_ZONE = 2.0 ** -16
 U_ZONE_BREAKS = 2
 #: ... and a zone's step-over doubles up to U_ZONE_MAX (of the cell). Where two break curves
