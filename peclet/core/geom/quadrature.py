@@ -605,11 +605,18 @@ def _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex):
 
 
 @njit(cache=True)
-def _probe_mids(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, ra, na, rb, nb, dst):
-    """The v-structure at u, probed also at S[ra, :na] and S[rb, :nb] (sorted; either may
-    be dst): (count of its piece midpoints, now in S[dst], hash); count -1 on overflow."""
+def _probe(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, ra, na, rb, nb):
+    """The v-structure at u (:func:`_vbreaks`), probed also at S[ra, :na] and S[rb, :nb]
+    (each sorted): (break count, hash); count -1 on overflow."""
     nex = _merge(S, ra, na, rb, nb, R_EXTRA)
-    m, h = _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex)
+    return _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, nex)
+
+
+@njit(cache=True)
+def _probe_mids(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, ra, na, rb, nb, dst):
+    """:func:`_probe`, keeping the piece midpoints (either source row may be dst): (count of
+    the midpoints, now in S[dst], hash); count -1 on overflow."""
+    m, h = _probe(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, steps, ra, na, rb, nb)
     if m < 0:
         return -1, h
     return _piece_mids(S, m, dst), h
@@ -806,9 +813,8 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                                                    v0, v1, nxp)
                             _sort_prefix(S[R_XP], nxp)
                             nt = _merge(S, R_MLO, nlo, R_MHI, nhi, R_XT)
-                            nex = _merge(S, R_XT, nt, R_XP, nxp, R_EXTRA)
-                            mm, hm = _vbreaks(P, ak, iu, iv, mid, v0, v1, a, b, lip, st, S,
-                                              track, nex)
+                            mm, hm = _probe(P, ak, iu, iv, mid, v0, v1, a, b, lip, st, S,
+                                            track, R_XT, nt, R_XP, nxp)
                             if mm < 0:
                                 return False
                             if hm == hx:
@@ -828,9 +834,8 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                         # thinning towards lo_ (a wedge closing at a vertex further down, whose
                         # midpoint moves faster than it opens) may have been missed there: probe
                         # lo_ with hi_'s pieces, and if the change lies below, search again
-                        nex = _merge(S, R_MLO, nlo, R_MHI, nhi, R_EXTRA)
-                        mr, hr = _vbreaks(P, ak, iu, iv, lo_, v0, v1, a, b, lip, st, S,
-                                          track, nex)
+                        mr, hr = _probe(P, ak, iu, iv, lo_, v0, v1, a, b, lip, st, S, track,
+                                        R_MLO, nlo, R_MHI, nhi)
                         if mr < 0:
                             return False
                         if hr == hx:
@@ -845,9 +850,8 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                         # a narrow piece followed up to it may have been missed there: probe it
                         # again with the pieces seen just below it (2^-U_BREAK_STEPS away)
                         nre += 1
-                        nex = _merge(S, R_MLO, nlo, R_MLO, 0, R_EXTRA)
-                        mr, hr = _vbreaks(P, ak, iu, iv, hi_, v0, v1, a, b, lip, st, S,
-                                          track, nex)
+                        mr, hr = _probe(P, ak, iu, iv, hi_, v0, v1, a, b, lip, st, S, track,
+                                        R_MLO, nlo, R_MLO, 0)
                         if mr < 0:
                             return False
                         if hi_ == y:
@@ -943,8 +947,8 @@ def _cell_rules(P, clo, chi, ak, iu, iv, g5x, g5w, g7x, g7w, lip, cen, st, S, se
                     nprev = _merge(S, R_MC, nc, R_MC, 0, R_MLO)
                 u, wu = _piece_node(pu0, pu1, gx[i], uflag[pu] != 0.0, uflag[pu + 1] != 0.0)
                 wu *= gw[i]
-                nex = _merge(S, R_MLO, nprev, R_MC, nc, R_EXTRA)
-                m, hv = _vbreaks(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, BREAK_STEPS, nex)
+                m, hv = _probe(P, ak, iu, iv, u, v0, v1, a, b, lip, st, S, BREAK_STEPS,
+                               R_MLO, nprev, R_MC, nc)
                 if m < 0:
                     return False
                 nprev = _piece_mids(S, m, R_MLO)
