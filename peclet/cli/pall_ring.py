@@ -1,4 +1,4 @@
-"""The ``peclet`` command line.
+"""``peclet pall-ring``: the reference page end to end.
 
     peclet pall-ring [--out DIR] [--rings N] [--seed S] [--threads T] [--steps-scale F]
                      [--mc-samples K] [--no-figures] [--quiet]
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-__all__ = ["main", "build_parser"]
+__all__ = ["add_parser", "run"]
 
 
 def _positive_int(name):
@@ -53,13 +53,11 @@ def _threads(s):
     return v
 
 
-def build_parser():
-    p = argparse.ArgumentParser(prog="peclet", description="peclet: composed analytic "
-                                "particles — certified CSG trees, quadrature, DEM, packing.")
-    sub = p.add_subparsers(dest="command", required=True)
+def add_parser(sub):
     pr = sub.add_parser("pall-ring", help="run the Pall-ring page end to end",
                         description="Pour Pall rings into a periodic box (the reference page, "
                         "Steps 1-7), analyse the pack, write figures, npz and results.json.")
+    pr.set_defaults(func=run)
     pr.add_argument("--out", default="results", help="output directory (default: ./results)")
     pr.add_argument("--rings", type=_positive_int("--rings"), default=48,
                     help="number of rings (default 48, the page's)")
@@ -78,25 +76,18 @@ def build_parser():
                     help="also render the pour as pour.gif (adds 10-20 s)")
     pr.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     pr.add_argument("--quiet", action="store_true", help="no progress bar")
-    return p
+    return pr
 
 
-def main(argv=None):
-    args = build_parser().parse_args(argv)
-    if args.command == "pall-ring":
-        from peclet.packing import pipeline
+def run(args):
+    from peclet.packing import pipeline
 
-        if args.threads is not None:
-            pipeline.set_threads(args.threads)
-        res = pipeline.run(out=args.out, rings=args.rings, seed=args.seed, threads=args.threads,
-                           steps_scale=args.steps_scale, box=args.box,
-                           mc_samples=args.mc_samples, shell_points=args.shell_points,
-                           progress=not args.quiet, write_figures=not args.no_figures,
-                           animation=args.animation)
-        print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
-        return 0
-    return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    if args.threads is not None:
+        pipeline.set_threads(args.threads)
+    res = pipeline.run(out=args.out, rings=args.rings, seed=args.seed, threads=args.threads,
+                       steps_scale=args.steps_scale, box=args.box,
+                       mc_samples=args.mc_samples, shell_points=args.shell_points,
+                       progress=not args.quiet, write_figures=not args.no_figures,
+                       animation=args.animation)
+    print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
+    return 0
