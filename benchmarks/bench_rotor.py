@@ -21,29 +21,31 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from peclet.core.geom import transforms
 from peclet.dem import rigid
+from peclet_verify.reference import rotor
 
 IINV = np.array([1.0, 1.0 / 2.0, 1.0 / 3.0])
-Q0 = rigid.quat_normalize(np.array([0.1, -0.2, 0.3, 0.9]))
+Q0 = transforms.quat_normalize(np.array([0.1, -0.2, 0.3, 0.9]))
 OMEGA_BODY0 = np.array([0.05, 10.0, 0.05])
 DTS = (4e-3, 2e-3, 1e-3, 5e-4)
 
 
 def flip_period_table():
     L0 = OMEGA_BODY0 / IINV
-    T_exact = rigid.free_rotor_period(IINV, L0)
+    T_exact = rotor.free_rotor_period(IINV, L0)
     t_end = 3.3 * T_exact
-    T_ivp = rigid.period_from_crossings(
-        rigid.euler_reference_crossings(IINV, L0, t_end, component=1, direction=+1))
-    w0 = rigid.quat_rotate(Q0, OMEGA_BODY0)
+    T_ivp = rotor.period_from_crossings(
+        rotor.euler_reference_crossings(IINV, L0, t_end, component=1, direction=+1))
+    w0 = transforms.quat_rotate(Q0, OMEGA_BODY0)
     rows = []
     for dt in DTS:
         n = int(round(t_end / dt))
-        _, _, L = rigid.integrate_free_rotor(Q0, w0, IINV, dt, n)
+        _, _, L = rotor.integrate_free_rotor(Q0, w0, IINV, dt, n)
         t = np.arange(n + 1) * dt
         dLdt = np.cross(L, IINV * L)
-        ups = rigid.crossing_times(t, L[:, 1], dLdt[:, 1], direction=+1)
-        T = rigid.period_from_crossings(ups)
+        ups = rotor.crossing_times(t, L[:, 1], dLdt[:, 1], direction=+1)
+        T = rotor.period_from_crossings(ups)
         rows.append({"dt": dt, "steps": n, "crossings": int(ups.size), "period": T,
                      "rel_err_closed_form": (T - T_exact) / T_exact,
                      "rel_err_ivp": (T - T_ivp) / T_ivp})
@@ -54,8 +56,8 @@ def flip_period_table():
 
 
 def conservation(dt=5e-4, n=10_000):
-    w0 = rigid.quat_rotate(Q0, OMEGA_BODY0)
-    quats, omegas, L_body = rigid.integrate_free_rotor(Q0, w0, IINV, dt, n)
+    w0 = transforms.quat_rotate(Q0, OMEGA_BODY0)
+    quats, omegas, L_body = rotor.integrate_free_rotor(Q0, w0, IINV, dt, n)
     L0 = rigid.angular_momentum_world(Q0, w0, IINV)
     E0 = rigid.kinetic_energy_rot(Q0, w0, IINV)
     dL = max(np.linalg.norm(rigid.angular_momentum_world(q, w, IINV) - L0)

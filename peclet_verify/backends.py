@@ -15,20 +15,28 @@ A ``name`` attribute is used in reports.
 from __future__ import annotations
 
 import importlib
+import math
 import os
+import select
 import subprocess
 import sys
+import time
 
 import numpy as np
 
-from peclet.core.geom import SceneBuilder
+from peclet.core.validation import PecletArgumentError, check_float
 
 from . import wire
 
-__all__ = ["ReferenceBackend", "SubprocessBackend", "load_backend", "serve", "check_backend",
-           "backend_name", "peclet_geom_child_command"]
+__all__ = ["ReferenceBackend", "SubprocessBackend", "load_backend", "parse_backend_spec", "serve",
+           "check_backend", "backend_name", "peclet_geom_child_command", "DEFAULT_TIMEOUT"]
 
 serve = wire.serve
+
+#: Seconds :class:`SubprocessBackend` waits for each answer (start-up included) by default.
+DEFAULT_TIMEOUT = 300.0
+#: Seconds a closing child gets to exit before it is killed.
+CLOSE_GRACE = 10.0
 
 
 def backend_name(backend) -> str:
@@ -57,6 +65,7 @@ class ReferenceBackend:
         nr = np.ascontiguousarray(nr, dtype=np.float64)
         key = (ni.tobytes(), nr.tobytes())
         if key != self._cache_key:
+            from peclet.core.geom import SceneBuilder  # here: importing this module stays light
             self._cache = SceneBuilder.decode(ni, nr)
             self._cache_key = key
         return self._cache
@@ -72,16 +81,32 @@ class ReferenceBackend:
         return c, r, cert
 
 
+def parse_backend_spec(spec):
+    """``(module, factory)`` of a ``"module:factory"`` spec, or None for the reference engine
+    (``None``, ``""`` or ``"reference"``); :class:`PecletArgumentError` for anything else.
+    Cheap: nothing is imported."""
+    if spec is None or spec in ("", "reference"):
+        return None
+    accepted = "'module:factory' (dotted module, Python name) or 'reference'"
+    if not isinstance(spec, str) or spec.count(":") != 1:
+        raise PecletArgumentError("backend", accepted, spec)
+    mod_name, attr = spec.split(":")
+    if not all(part.isidentifier() for part in mod_name.split(".")) or not attr.isidentifier():
+        raise PecletArgumentError("backend", accepted, spec)
+    return mod_name, attr
+
+
 def load_backend(spec: str):
     """Instantiate a backend from ``"module:factory"`` (``factory()`` returns the backend).
 
-    ``"reference"`` (or an empty spec) gives :class:`ReferenceBackend`.
+    ``"reference"`` (or an empty spec) gives :class:`ReferenceBackend`. Every failure (a
+    malformed spec, a module that does not import, no such factory, a factory that raises or
+    returns no engine) is a ``ValueError`` naming the spec.
     """
-    if not spec or spec == "reference":
+    parsed = parse_backend_spec(spec)
+    if parsed is None:
         return ReferenceBackend()
-    if not isinstance(spec, str) or spec.count(":") != 1:
-        raise ValueError(f"backend must be 'module:factory' (or 'reference'), got {spec!r}")
-    mod_name, attr = spec.split(":")
+    mod_name, attr = parsed
     try:
         mod = importlib.import_module(mod_name)
     except ImportError as exc:
@@ -89,7 +114,49 @@ def load_backend(spec: str):
     factory = getattr(mod, attr, None)
     if not callable(factory):
         raise ValueError(f"backend {spec!r}: {mod_name} has no callable {attr!r}")
-    return check_backend(factory())
+    try:
+        backend = factory()
+    except Exception as exc:  # a broken factory is a usage error for the one who named it
+        raise ValueError(f"backend {spec!r}: {attr}() raised {type(exc).__name__}: {exc}") \
+            from exc
+    return check_backend(backend)
+
+
+class _TimedPipe:
+    """``read(n)`` / ``write(data)`` on a child's pipes that give up (``TimeoutError(what)``)
+    once ``deadline`` (time.monotonic()) has passed: a child that neither answers nor reads
+    its input cannot hang the certification."""
+
+    def __init__(self, proc, deadline, what):
+        self.rfd, self.wfd = proc.stdout.fileno(), proc.stdin.fileno()
+        self.deadline, self.what = deadline, what
+
+    def _wait(self, fd, for_write):
+        left = self.deadline - time.monotonic()
+        ready = select.select([], [fd], [], left)[1] if for_write else \
+            select.select([fd], [], [], left)[0]
+        if left <= 0 or not ready:
+            raise TimeoutError(self.what)
+
+    def read(self, n):
+        chunks, got = [], 0
+        while got < n:
+            self._wait(self.rfd, False)
+            data = os.read(self.rfd, n - got)
+            if not data:
+                break  # EOF: the caller reports the short read
+            chunks.append(data)
+            got += len(data)
+        return b"".join(chunks)
+
+    def write(self, data):
+        view = memoryview(data)
+        while len(view):
+            self._wait(self.wfd, True)
+            view = view[os.write(self.wfd, view[:select.PIPE_BUF]):]
+
+    def flush(self):
+        pass  # unbuffered (bufsize=0): every write went straight to the pipe
 
 
 class SubprocessBackend:
@@ -98,14 +165,30 @@ class SubprocessBackend:
     The child can live in another interpreter or virtual environment: it needs numpy and
     :mod:`peclet_verify.wire` only. ``evaluate_grad`` / ``bound`` exist on this object iff the
     child's engine offers them. Use as a context manager or call :meth:`close`.
+
+    ``timeout`` (seconds, default :data:`DEFAULT_TIMEOUT`) bounds the wait for each answer,
+    the child's start-up included: a child that does not answer in time is killed and the
+    call raises :class:`TimeoutError` naming the backend (a certificate then fails with it).
     """
 
-    def __init__(self, cmd, name=None, env=None, cwd=None):
-        if isinstance(cmd, str) or not cmd:
-            raise ValueError(f"cmd must be a non-empty list of program arguments, got {cmd!r}")
+    def __init__(self, cmd, name=None, env=None, cwd=None, timeout=None):
+        if isinstance(cmd, (str, bytes)) or not isinstance(cmd, (list, tuple)) or not cmd \
+                or not all(isinstance(c, (str, os.PathLike)) for c in cmd):
+            raise PecletArgumentError("cmd", "a non-empty list of program arguments (strings)",
+                                      cmd)
+        self.timeout = DEFAULT_TIMEOUT if timeout is None else check_float(
+            "timeout", timeout, 0.0, math.inf, lo_open=True)
+        if name is not None and not isinstance(name, str):
+            raise PecletArgumentError("name", "a string or None", name)
         self.name = name or os.path.basename(str(cmd[-1]))
-        self._proc = subprocess.Popen(list(cmd), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                      stderr=None, env=env, cwd=cwd)
+        self._proc = None
+        try:
+            self._proc = subprocess.Popen([os.fspath(c) for c in cmd], stdin=subprocess.PIPE,
+                                          stdout=subprocess.PIPE, stderr=None, env=env,
+                                          cwd=cwd, bufsize=0)
+        except OSError as exc:
+            raise PecletArgumentError("cmd", "a command that can be started", cmd,
+                                      str(exc)) from None
         self._methods = set(str(m) for m in self._call("methods")[0].reshape(-1) if str(m))
         if "evaluate" not in self._methods:
             self.close()
@@ -114,9 +197,15 @@ class SubprocessBackend:
     def _call(self, method, *args):
         if self._proc is None:
             raise RuntimeError(f"backend {self.name!r} is closed")
+        what = (f"backend {self.name!r} did not answer {method!r} within {self.timeout:g} s "
+                f"(SubprocessBackend timeout); the child was killed")
+        pipe = _TimedPipe(self._proc, time.monotonic() + self.timeout, what)
         try:
-            wire.write_message(self._proc.stdin, [np.array(method), *args])
-            reply = wire.read_message(self._proc.stdout)
+            wire.write_message(pipe, [np.array(method), *args])
+            reply = wire.read_message(pipe)
+        except TimeoutError:
+            self._kill()
+            raise
         except (EOFError, BrokenPipeError) as exc:
             code = self._proc.poll()
             raise RuntimeError(f"backend {self.name!r} child died (exit code {code}): "
@@ -124,6 +213,14 @@ class SubprocessBackend:
         if str(reply[0]) != "ok":
             raise RuntimeError(f"backend {self.name!r} failed in {method}:\n{reply[1]}")
         return reply[1:]
+
+    def _kill(self):
+        proc, self._proc = self._proc, None
+        if proc is not None:
+            proc.kill()
+            proc.wait()
+            for f in (proc.stdin, proc.stdout):
+                f.close()
 
     def __getattr__(self, item):
         # evaluate_grad / bound appear only when the child offers them (hasattr is truthful)
@@ -146,16 +243,20 @@ class SubprocessBackend:
         return self._dispatch("evaluate", node_ints, node_reals, root, points)
 
     def close(self):
+        """Ask the child to exit (it has ``CLOSE_GRACE`` seconds), then kill it."""
         if self._proc is not None:
+            pipe = _TimedPipe(self._proc, time.monotonic() + CLOSE_GRACE, "close")
             try:
-                wire.write_message(self._proc.stdin, [np.array("close")])
-                wire.read_message(self._proc.stdout)
-            except Exception:  # the child may already be gone; closing must not raise
+                wire.write_message(pipe, [np.array("close")])
+                wire.read_message(pipe)
+            except Exception:  # the child may already be gone or hung; closing must not raise
                 pass
-            for f in (self._proc.stdin, self._proc.stdout):
-                f.close()
-            self._proc.wait(timeout=30)
-            self._proc = None
+            proc = self._proc
+            try:
+                proc.wait(timeout=CLOSE_GRACE)
+            except subprocess.TimeoutExpired:
+                pass
+            self._kill()
 
     def __enter__(self):
         return self

@@ -9,7 +9,9 @@ Used by the suite's own tests and by anyone who wants to see a certificate fail:
 - :func:`biased_cell_quadrature` counts cells whose centre has ``phi < bias * h``;
 - :func:`thread_order_pour` adds to a running total with a ``prange`` float reduction
   (thread-count dependent);
-- :class:`FixedBufferEngine` never grows its contact buffer (``grow=True`` is the correct twin).
+- :class:`FixedBufferEngine` never grows its contact buffer (``grow=True`` is the correct twin);
+- :class:`BadAnswerBackend` answers ``evaluate`` with something that is not a finite phi of the
+  right shape (one of :data:`BAD_ANSWERS`); a factory per kind for ``--peclet-backend``.
 """
 from __future__ import annotations
 
@@ -22,7 +24,9 @@ from .backends import ReferenceBackend
 
 __all__ = ["OverclaimingBoundBackend", "TreeWalkBackend", "biased_cell_quadrature",
            "cell_quadrature", "thread_order_pour", "FixedBufferEngine", "fixed_buffer_engine",
-           "growing_buffer_engine"]
+           "growing_buffer_engine", "BadAnswerBackend", "BAD_ANSWERS", "nan_backend",
+           "inf_backend", "none_backend", "empty_backend", "short_backend", "zero_backend",
+           "raising_backend"]
 
 SHELL, HOLLOW_CYLINDER = 4, 2
 
@@ -196,3 +200,82 @@ def sign_flip_torus_backend():
 def overclaiming_backend():
     """Factory (for ``--peclet-backend``): :class:`OverclaimingBoundBackend`."""
     return OverclaimingBoundBackend()
+
+
+#: The unusable answers :class:`BadAnswerBackend` can plant, each with what it answers.
+BAD_ANSWERS = {
+    "nan": "NaN at every point",
+    "inf": "the reference phi, but +inf wherever it is positive (outside)",
+    "none": "None",
+    "empty": "an empty array",
+    "short": "the reference phi without its last point",
+    "zero": "0.0 at every point",
+    "raise": "raises RuntimeError",
+}
+
+
+class BadAnswerBackend:
+    """An engine whose ``evaluate`` answers one of :data:`BAD_ANSWERS` (``bad``).
+
+    Every certificate that asks it must fail: comparisons with NaN are never violations, +inf
+    outside satisfies every inequality, and a short or empty answer broadcasts or slices
+    silently, so none of these is caught by the figures alone."""
+
+    def __init__(self, bad):
+        if bad not in BAD_ANSWERS:
+            raise ValueError(f"bad must be one of {sorted(BAD_ANSWERS)}, got {bad!r}")
+        self.bad = bad
+        self.name = f"bad-answer({bad})"
+        self._reference = ReferenceBackend()
+
+    def evaluate(self, node_ints, node_reals, root, points):
+        n = len(points)
+        if self.bad == "raise":
+            raise RuntimeError("planted: this engine raises on every call")
+        if self.bad == "none":
+            return None
+        if self.bad == "nan":
+            return np.full(n, np.nan)
+        if self.bad == "empty":
+            return np.zeros(0)
+        if self.bad == "zero":
+            return np.zeros(n)
+        phi = self._reference.evaluate(node_ints, node_reals, root, points)
+        if self.bad == "inf":
+            return np.where(phi > 0, np.inf, phi)
+        return phi[:-1]  # short
+
+
+def nan_backend():
+    """Factory (for ``--peclet-backend``): answers NaN everywhere."""
+    return BadAnswerBackend("nan")
+
+
+def inf_backend():
+    """Factory: answers +inf wherever the reference is positive."""
+    return BadAnswerBackend("inf")
+
+
+def none_backend():
+    """Factory: answers None."""
+    return BadAnswerBackend("none")
+
+
+def empty_backend():
+    """Factory: answers an empty array."""
+    return BadAnswerBackend("empty")
+
+
+def short_backend():
+    """Factory: answers one value fewer than it was asked for."""
+    return BadAnswerBackend("short")
+
+
+def zero_backend():
+    """Factory: answers 0.0 everywhere."""
+    return BadAnswerBackend("zero")
+
+
+def raising_backend():
+    """Factory: raises on every call."""
+    return BadAnswerBackend("raise")

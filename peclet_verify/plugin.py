@@ -2,26 +2,46 @@
 
 Options (group "peclet"):
   --peclet-certify          run tests marked ``peclet_certify`` (skipped with a reason otherwise)
-  --peclet-profile NAME     Hypothesis profile: dev (default), ci (derandomised), nightly
-  --peclet-report PATH      write every certificate as JSON (atomically)
-  --peclet-backend SPEC     "module:factory" engine to certify (default: the reference engine)
+  --peclet-profile NAME     certification profile: dev (default), ci, nightly, smoke (see
+                            :mod:`peclet_verify.profiles`; applies to certificates only)
+  --peclet-report PATH      write every certificate as JSON (atomically; refuses a path that is
+                            a directory, unwritable, or a file that is not a peclet report)
+  --peclet-backend SPEC     "module:factory" engine to certify (default: the
+                            ``pytest_peclet_make_backend`` hook, else the reference engine)
+  --peclet-compare PATH     fail when a certificate regressed against that previous report
+  --peclet-xfails PATH      declared known deviations (TOML or JSON: certificate -> reason)
+  --peclet-replay DIR       re-run only the examples saved in that example database
+                            (read-only; e.g. the last nightly's .hypothesis/examples)
 
-Fixtures: ``peclet_backend`` (the engine under certification, session scope) and
-``peclet_certificate`` (call it with a :class:`~peclet_verify.properties.PropertyResult`: it
-records the certificate for the summary table / report, skips an "unavailable" one and fails
-the test, showing the shrunk counterexample, on a failed one).
+Every option is checked when pytest starts (a one-line usage error naming the option and the
+file), before any certificate runs. Fixtures: ``peclet_backend`` (the engine under
+certification, session scope) and ``peclet_certificate`` (call it with a
+:class:`~peclet_verify.properties.PropertyResult`: it records the certificate, skips an
+"unavailable" one, xfails a waived failure and fails the test, showing the shrunk
+counterexample, on any other failure).
+
+Results travel on each test's report (``user_properties``), so under pytest-xdist (``-n``) the
+controller's summary, comparison and report hold every certificate; only the controller
+writes the report. Importing this module imports pytest and the standard library only: the
+engine, numpy and Hypothesis load when ``--peclet-certify`` is given.
 """
 from __future__ import annotations
 
-import json
+import importlib.util
 import os
-import sys
-import tempfile
 
 import pytest
 
-PROFILES = ("dev", "ci", "nightly")
-_RESULTS = pytest.StashKey[list]()
+PROFILES = ("dev", "ci", "nightly", "smoke")  # = peclet_verify.profiles.PROFILES (a test checks)
+USER_PROPERTY = "peclet_certificate"
+_STATE = pytest.StashKey[dict]()
+_NEEDS_CERTIFY = ("--peclet-profile", "--peclet-report", "--peclet-backend", "--peclet-compare",
+                  "--peclet-xfails", "--peclet-replay")
+
+
+def pytest_addhooks(pluginmanager):
+    from . import hooks
+    pluginmanager.add_hookspecs(hooks)
 
 
 def pytest_addoption(parser):
@@ -29,45 +49,101 @@ def pytest_addoption(parser):
     group.addoption("--peclet-certify", action="store_true", default=False,
                     help="run the peclet certification properties (marker peclet_certify)")
     group.addoption("--peclet-profile", choices=PROFILES, default=None,
-                    help="Hypothesis profile for certification: dev (default; few examples), "
-                         "ci (derandomised), nightly (thousands of examples, example database)")
+                    help="certification profile: dev (default; 25 examples, random), ci (40, "
+                         "derandomised, no database), nightly (2000, random, example "
+                         "database), smoke (2; for testing the plugin itself)")
     group.addoption("--peclet-report", metavar="PATH", default=None,
-                    help="write the certificates as JSON to PATH (atomic)")
+                    help="write the certificates as JSON to PATH (atomic; never replaces a "
+                         "file that is not a peclet report)")
     group.addoption("--peclet-backend", metavar="MODULE:FACTORY", default=None,
                     help="engine to certify: factory() returns an object with evaluate(...) "
-                         "(default: the peclet reference engine)")
+                         "(default: the pytest_peclet_make_backend hook, else the reference)")
+    group.addoption("--peclet-compare", metavar="PREVIOUS.json", default=None,
+                    help="fail if a certificate that passed in PREVIOUS.json fails now, or "
+                         "its figure got worse beyond the documented tolerance")
+    group.addoption("--peclet-xfails", metavar="FILE", default=None,
+                    help="known deviations (TOML or JSON: certificate -> reason [, kinds]); "
+                         "a matching failure is reported as waived, not failed")
+    group.addoption("--peclet-replay", metavar="DIR", default=None,
+                    help="re-run only the examples saved in the example database DIR "
+                         "(read-only, nothing generated), e.g. the last nightly's")
 
 
-def register_profiles():
-    """Register the dev / ci / nightly Hypothesis profiles (deadline off: JIT warm-up and
-    subprocess engines make per-example timing meaningless)."""
-    from hypothesis import HealthCheck, settings
-    common = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                        HealthCheck.data_too_large])
-    settings.register_profile("peclet-dev", max_examples=25, **common)
-    settings.register_profile("peclet-ci", max_examples=40, derandomize=True, database=None,
-                              print_blob=True, **common)
-    settings.register_profile("peclet-nightly", max_examples=2000, **common)
+def _is_worker(config) -> bool:
+    return hasattr(config, "workerinput")  # pytest-xdist worker
+
+
+def _check_options(config):
+    """Validate every peclet option (cheap: no engine import); returns the session state."""
+    from . import report as R
+    certify = config.getoption("--peclet-certify")
+    given = [opt for opt in _NEEDS_CERTIFY if config.getoption(opt) is not None]
+    if given and not certify:
+        raise pytest.UsageError(f"{given[0]} has no effect without --peclet-certify")
+    state = {"rows": [], "waivers": [], "baseline": None, "compare": None, "report": None,
+             "profile": None}
+    try:
+        path = config.getoption("--peclet-report")
+        if path is not None:
+            state["report"] = R.check_report_path(path)
+        path = config.getoption("--peclet-compare")
+        if path is not None:
+            state["baseline"] = R.load_report(path, "--peclet-compare")
+        path = config.getoption("--peclet-xfails")
+        if path is not None:
+            state["waivers"] = R.load_xfails(path, R.KNOWN_CERTIFICATES)
+        spec = config.getoption("--peclet-backend")
+        if spec is not None:
+            _check_backend_spec(spec)
+        replay = config.getoption("--peclet-replay")
+        if replay is not None:
+            from .profiles import check_replay_dir
+            check_replay_dir(replay)
+    except ValueError as exc:
+        raise pytest.UsageError(str(exc).splitlines()[0]) from None
+    return state
+
+
+def _check_backend_spec(spec):
+    from .backends import parse_backend_spec
+    try:
+        parsed = parse_backend_spec(spec)
+    except ValueError as exc:
+        raise ValueError(f"--peclet-backend: {exc}") from None
+    if parsed is not None:
+        try:
+            found = importlib.util.find_spec(parsed[0])
+        except (ImportError, ValueError) as exc:
+            found, why = None, f"{type(exc).__name__}: {exc}"
+        else:
+            why = "no such module"
+        if found is None:
+            raise ValueError(f"--peclet-backend {spec!r}: cannot import module "
+                             f"{parsed[0]!r} ({why})")
 
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "peclet_certify: a certification property; runs only "
                                        "with --peclet-certify")
-    config.stash[_RESULTS] = []
-    profile = config.getoption("--peclet-profile")
-    if config.getoption("--peclet-certify") or profile:
-        from hypothesis import settings
-        register_profiles()
-        # loaded only when asked, so plain runs keep the project's own Hypothesis settings
-        settings.load_profile("peclet-" + (profile or "dev"))
-        from .properties import set_progress
-        set_progress(lambda *a: _report_progress(config, *a))
+    state = _check_options(config)
+    config.stash[_STATE] = state
+    config.pluginmanager.register(_Collector(state["rows"]), "peclet-certificates")
+    if config.getoption("--peclet-certify"):
+        from . import properties as P
+        from .profiles import make_settings
+        name = config.getoption("--peclet-profile") or "dev"
+        replay = config.getoption("--peclet-replay")
+        state["profile"] = "peclet-" + name + (" (replay)" if replay else "")
+        P.set_profile(make_settings(name, str(config.rootpath), replay), state["profile"])
+        P.set_progress(lambda *a: _report_progress(config, *a))
 
 
 def pytest_unconfigure(config):
-    props = sys.modules.get("peclet_verify.properties")   # not imported: nothing to undo
+    import sys
+    props = sys.modules.get("peclet_verify.properties")  # not imported: nothing to undo
     if props is not None:
         props.set_progress(None)
+        props.set_profile(None)
 
 
 def _report_progress(config, name, examples, max_examples, seconds):
@@ -111,13 +187,24 @@ def _peclet_jit_warm():
 
 @pytest.fixture(scope="session")
 def peclet_backend(pytestconfig):
-    """The engine under certification (``--peclet-backend``, default the reference)."""
-    from .backends import load_backend
+    """The engine under certification: ``--peclet-backend`` if given, else what a
+    ``pytest_peclet_make_backend`` hook returns, else the reference engine."""
+    from .backends import ReferenceBackend, check_backend, load_backend
     spec = pytestconfig.getoption("--peclet-backend")
-    try:
-        backend = load_backend(spec or "reference")
-    except ValueError as exc:
-        raise pytest.UsageError(f"--peclet-backend: {exc}") from exc
+    # A backend that cannot be made is the session's problem, not each test's: stop once,
+    # with one line naming where the backend came from (the option, or the hook).
+    if spec:
+        try:
+            backend = load_backend(spec)
+        except ValueError as exc:
+            pytest.exit(f"--peclet-backend: {exc}", returncode=4)
+    else:
+        try:
+            backend = pytestconfig.hook.pytest_peclet_make_backend(config=pytestconfig)
+            backend = ReferenceBackend() if backend is None else check_backend(backend)
+        except Exception as exc:  # whatever a downstream hook raises
+            pytest.exit(f"pytest_peclet_make_backend: {type(exc).__name__}: {exc}",
+                        returncode=4)
     yield backend
     close = getattr(backend, "close", None)
     if callable(close):
@@ -126,12 +213,25 @@ def peclet_backend(pytestconfig):
 
 @pytest.fixture
 def peclet_certificate(request):
-    """Record a PropertyResult; skip if unavailable, fail (with the counterexample) if failed."""
+    """Record a PropertyResult; skip if unavailable, xfail if waived, fail (with the
+    counterexample) if failed."""
+    from .report import find_waiver
+    state = request.config.stash[_STATE]
+
     def record(result):
-        request.config.stash[_RESULTS].append((request.node.nodeid, result))
+        cert = dict(test=request.node.nodeid, **result.to_dict())
+        if not result.passed and result.status not in ("n/a", "unavailable"):
+            cert["status"] = "failed"  # passed=False decides, whatever status was left at
+        waiver = find_waiver(state["waivers"], cert)
+        cert["waived"] = waiver.reason if waiver else None
+        # on the report, so that the xdist controller receives it (its stash is not shared)
+        request.node.user_properties.append((USER_PROPERTY, cert))
         if result.status == "unavailable":
             pytest.skip(f"{result.name} unavailable: {result.counterexample}")
-        if not result.passed and result.status != "n/a":
+        if cert["status"] == "failed":
+            if waiver:
+                pytest.xfail(f"certificate {result.name} failed, waived ({waiver.name}): "
+                             f"{waiver.reason}")
             pytest.fail(f"certificate {result.name} FAILED after {result.examples} examples "
                         f"(worst {result.worst_name} = {result.worst!r})\n"
                         f"{result.counterexample}", pytrace=False)
@@ -139,56 +239,92 @@ def peclet_certificate(request):
     return record
 
 
-def _rows(config):
-    return config.stash.get(_RESULTS, [])
+class _Collector:
+    """Gathers the certificates from every test report: in this process, or (under xdist, on
+    the controller) from the workers' reports."""
+
+    def __init__(self, rows):
+        self.rows = rows
+
+    def pytest_runtest_logreport(self, report):
+        if report.when == "call":
+            self.rows.extend(v for k, v in report.user_properties if k == USER_PROPERTY)
+
+
+def _verdict(c) -> str:
+    if c["status"] == "failed" and c.get("waived"):
+        return "WAIVED"
+    return c["status"].upper()
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
-    rows = _rows(config)
-    if not rows:
+    state = config.stash.get(_STATE, None)
+    if not state or not state["rows"]:
         return
     tr = terminalreporter
     tr.write_sep("=", "peclet certificates")
     head = f"{'property':<44} {'examples':>8}  {'worst figure':<44} {'verdict':<11}"
     tr.write_line(head)
     tr.write_line("-" * len(head))
-    for nodeid, r in rows:
-        label = nodeid.split("::")[-1] if r.name in nodeid else f"{r.name} ({nodeid.split('::')[-1]})"
-        fig = f"{r.worst_name} = {r.worst:.3g}" if r.worst_name else "-"
-        tr.write_line(f"{label[:44]:<44} {r.examples:>8}  {fig[:44]:<44} {r.status.upper():<11}",
-                      red=r.status == "failed", green=r.status == "passed",
-                      yellow=r.status in ("unavailable", "n/a"))
-    for nodeid, r in rows:
-        if r.status == "failed":
-            tr.write_sep("-", f"counterexample: {r.name}")
-            tr.write_line(r.counterexample)
+    for c in state["rows"]:
+        label = c["test"].split("::")[-1] if c["name"] in c["test"] else \
+            f"{c['name']} ({c['test'].split('::')[-1]})"
+        fig = f"{c['worst_name']} = {c['worst']:.3g}" if c["worst_name"] and \
+            c["worst"] is not None else (f"{c['worst_name']} = -" if c["worst_name"] else "-")
+        v = _verdict(c)
+        tr.write_line(f"{label[:44]:<44} {c['examples']:>8}  {fig[:44]:<44} {v:<11}",
+                      red=v == "FAILED", green=v == "PASSED",
+                      yellow=v in ("UNAVAILABLE", "N/A", "WAIVED"))
+    for c in state["rows"]:
+        if c["status"] == "failed":
+            tr.write_sep("-", f"counterexample: {c['name']}" +
+                         (f" (waived: {c['waived']})" if c.get("waived") else ""))
+            tr.write_line(c["counterexample"])
+    for w in state["waivers"]:
+        used = sum(1 for c in state["rows"] if c.get("waived") and w.matches(c))
+        tr.write_line(f"waiver {w.name!r}{' kinds ' + ','.join(w.kinds) if w.kinds else ''}: "
+                      f"{w.reason} (applied to {used} certificate(s))", yellow=True)
+    if state["compare"] is not None:
+        regressions, lines = state["compare"]
+        tr.write_sep("=", "peclet compare with "
+                     f"{config.getoption('--peclet-compare')}: "
+                     f"{len(regressions)} regression(s)", red=bool(regressions))
+        for line in lines:
+            tr.write_line(line, red="REGRESSED" in line)
 
 
-def write_json_atomic(path, data):
-    """Write ``data`` as JSON to ``path`` through a temp file in the same directory."""
-    path = os.path.abspath(path)
-    d = os.path.dirname(path)
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".peclet-report-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(data, f, indent=2)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+def _backend_label(config) -> str:
+    spec = config.getoption("--peclet-backend")
+    if spec:
+        return spec
+    hooked = config.hook.pytest_peclet_make_backend.get_hookimpls()
+    return "pytest_peclet_make_backend hook" if hooked else "reference"
 
 
 def pytest_sessionfinish(session, exitstatus):
     config = session.config
-    rows = _rows(config)
-    if any(r.status == "failed" for _, r in rows) and session.exitstatus == 0:
+    state = config.stash.get(_STATE, None)
+    if state is None or _is_worker(config):
+        return  # workers send their certificates on the reports; the controller writes
+    rows = state["rows"]
+    if any(c["status"] == "failed" and not c.get("waived") for c in rows) \
+            and session.exitstatus == 0:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
-    path = config.getoption("--peclet-report")
-    if path:
-        from hypothesis import settings
-        write_json_atomic(path, {
-            "profile": settings.get_current_profile_name() if rows else None,
-            "backend": config.getoption("--peclet-backend") or "reference",
-            "certificates": [dict(test=n, **r.to_dict()) for n, r in rows]})
+    if state["baseline"] is not None:
+        from .report import compare
+        state["compare"] = compare(state["baseline"], rows)
+        if state["compare"][0] and session.exitstatus == 0:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
+    if state["report"]:
+        from .report import write_report
+        regressions = state["compare"][0] if state["compare"] else None
+        write_report(state["report"], {
+            "profile": state["profile"],
+            "backend": _backend_label(config),
+            "certificates": rows,
+            "waivers": [dict(w.to_dict(), applied=sum(1 for c in rows if c.get("waived")
+                                                      and w.matches(c)))
+                        for w in state["waivers"]],
+            "compare": None if regressions is None else {
+                "baseline": os.path.abspath(config.getoption("--peclet-compare")),
+                "regressions": regressions}})

@@ -26,10 +26,13 @@ import numpy as np
 from hypothesis import Phase, given, seed
 from hypothesis import settings as hypothesis_settings
 
+from .answers import ask, ask_bound
+from .reference.contacts import brute_force_contacts
 from .backends import ReferenceBackend, backend_name, check_backend
 from .strategies import TreeRecipe, surface_points
 
-__all__ = ["PropertyResult", "search", "equation1", "sign_agreement", "distance_agreement",
+__all__ = ["PropertyResult", "search", "set_profile", "active_settings", "profile_settings",
+           "active_profile_name", "equation1", "sign_agreement", "distance_agreement",
            "quadrature_convergence", "closed_form", "determinism", "buffer_growth",
            "state_hash", "reference_measure", "reference_pour", "brute_force_contacts"]
 
@@ -64,6 +67,14 @@ class PropertyResult:
 def _result(name, ok, figure, figure_name, worse, text="", **details):
     return PropertyResult(name, bool(ok), 1, float(figure), figure_name,
                           "" if ok else text, PASSED if ok else FAILED, worse, details)
+
+
+def _bad_answer(name, figure_name, worse, why) -> PropertyResult:
+    """A failed certificate whose backend gave no usable answer (``why`` shows the answer);
+    its figure is the worst possible (-inf for a "min" figure, +inf for a "max" one)."""
+    return PropertyResult(name, False, 1, -math.inf if worse == "min" else math.inf, figure_name,
+                          f"unusable answer from the engine under certification: {why}", FAILED,
+                          worse, {"bad_answer": why})
 
 
 def unavailable(name, why) -> PropertyResult:
@@ -127,12 +138,43 @@ def set_progress(callback: Optional[Callable]) -> None:
     _progress = callback
 
 
+#: The certification profile's settings (see :mod:`peclet_verify.profiles`), set by the pytest
+#: plugin with :func:`set_profile`; None: Hypothesis's loaded default applies.
+_profile = None
+_profile_name: Optional[str] = None
+
+
+def set_profile(settings_obj, name: Optional[str] = None) -> None:
+    """Make ``settings_obj`` (a Hypothesis ``settings``) the one :func:`search` uses when it
+    is given none; None restores Hypothesis's loaded default. Nothing global in Hypothesis is
+    touched, so other Hypothesis tests in the process keep their own settings."""
+    global _profile, _profile_name
+    _profile, _profile_name = settings_obj, (name if settings_obj is not None else None)
+
+
+def active_settings():
+    """The settings :func:`search` uses by default: the certification profile if one is set,
+    else Hypothesis's loaded default."""
+    return _profile if _profile is not None else hypothesis_settings.default
+
+
+def active_profile_name() -> Optional[str]:
+    """Name of the profile set with :func:`set_profile` (None if none)."""
+    return _profile_name
+
+
+def profile_settings(**overrides):
+    """The active certification settings with ``overrides`` (e.g. fewer ``max_examples`` for a
+    certificate whose examples are expensive); build it inside the test, not at import."""
+    return hypothesis_settings(active_settings(), **overrides)
+
+
 def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
            describe: Callable = repr) -> PropertyResult:
     """Run ``check(example) -> PropertyResult`` over ``strategy`` with Hypothesis.
 
-    The loaded Hypothesis profile applies unless ``settings`` is given. On failure Hypothesis
-    shrinks the input; the returned result carries the shrunk example (``describe(example)``)
+    The active certification profile (:func:`active_settings`) applies unless ``settings``
+    is given. On failure Hypothesis shrinks the input; the returned result carries the shrunk example (``describe(example)``)
     and its own counterexample text. Inputs for which the property does not apply (status
     "n/a") count as examples but never fail. An "unavailable" result stops the search.
 
@@ -145,7 +187,7 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
     """
     seen = {"n": 0, "applicable": 0, "worst": None, "last_fail": None, "unavailable": None,
             "first_fail_at": None, "calls": 0}
-    effective = settings if settings is not None else hypothesis_settings.default
+    effective = settings if settings is not None else active_settings()
     label = name or getattr(check, "__qualname__", "property")
     every = (effective.max_examples // 10
              if _progress is not None and effective.max_examples >= PROGRESS_MIN_EXAMPLES else 0)
@@ -157,6 +199,7 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
             seen["unavailable"] = res
             return
         seen["calls"] += 1
+        seen.setdefault("property", res.name)
         if every and seen["calls"] % every == 0 and seen["first_fail_at"] is None:
             _progress(label, seen["calls"], effective.max_examples, time.perf_counter() - start)
         before_failure = seen["first_fail_at"] is None
@@ -177,6 +220,8 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
 
     # no explain phase: it re-runs the failing input hundreds of times to annotate Hypothesis's
     # own report, which search never shows (the counterexample is describe(shrunk input))
+    # every certificate gets its own example-database key (``run`` has the same source for all)
+    run._hypothesis_internal_add_digest = label.encode()
     test = hypothesis_settings(effective, phases=[p for p in effective.phases
                                                   if p is not Phase.explain])(given(strategy)(run))
     pool = nullcontext()
@@ -201,6 +246,8 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
                           PASSED if err is None else FAILED,
                           worst.worse if worst else "max",
                           {"applicable": seen["applicable"]})
+    if "property" in seen:
+        base.details["property"] = seen["property"]
     if seen["first_fail_at"] is not None:
         base.details["runs_after_failure"] = seen["calls"] - seen["first_fail_at"]
     if seen["applicable"] == 0 and err is None:
@@ -233,20 +280,26 @@ def equation1(recipe: TreeRecipe, backend=None, n: int = 256, claimed_by: str = 
     The ball and the ``certified`` claim come from ``backend.bound`` when the backend has one
     (``claimed_by="backend"``), else from the reference rule (DESIGN.md §3). Applies only to
     trees claimed certified (status "n/a" otherwise). Figure: minimum slack (>= -tol * (1 + r)
-    passes); the violation rate is in ``details``.
+    passes); the violation rate is in ``details``. An unusable answer from ``evaluate`` or
+    ``bound`` (see :mod:`peclet_verify.answers`) fails, with the answer in the text.
     """
     backend = check_backend(backend or ReferenceBackend())
     b, root, ni, nr = _encode(recipe)
+    name = "equation1"
     if claimed_by == "backend" and callable(getattr(backend, "bound", None)):
-        c, r, cert = backend.bound(ni, nr, root)
+        claim, why = ask_bound(backend, ni, nr, root)
+        if why:
+            return _bad_answer(name, "min slack", "min", why)
+        c, r, cert = claim
     else:
         c, r, cert = b.node_bound(root)
     c = np.asarray(c, float)
-    name = "equation1"
     if not cert or not math.isfinite(r):
         return PropertyResult(name, True, 1, float("nan"), "min slack", "", NOT_APPLICABLE, "min")
     p = _probe_outside(c, r, n, _rng("eq1", ni.tobytes(), nr.tobytes()))
-    phi = np.asarray(backend.evaluate(ni, nr, root, p), float)
+    phi, why = ask(backend, "evaluate", ni, nr, root, p)
+    if why:
+        return _bad_answer(name, "min slack", "min", why)
     slack = phi - (np.linalg.norm(p - c, axis=1) - r)
     bad = slack < -tol * (1.0 + r)
     k = int(np.argmin(slack))
@@ -277,7 +330,9 @@ def sign_agreement(recipe: TreeRecipe, other: Optional[TreeRecipe] = None, backe
     baked and compared with ``eval_root`` at the lattice nodes), the scene query
     (``eval_scene``, pruned and brute, one instance at identity), ``decode(encode())``, the
     ``backend`` (and its ``evaluate_grad``) and, when given, a second recipe ``other`` for the
-    same solid. Points with ``|phi| <= band * (1 + r)`` (on the surface) are skipped.
+    same solid. Points with ``|phi| <= band * (1 + r)`` (on the surface) are skipped; at the
+    others an answer of exactly 0 disagrees too. An unusable answer from the backend (see
+    :mod:`peclet_verify.answers`: None, NaN/inf, wrong shape, raised) fails at once.
     Figure: the fraction of points whose sign disagrees.
     """
     backend = check_backend(backend or ReferenceBackend())
@@ -286,11 +341,15 @@ def sign_agreement(recipe: TreeRecipe, other: Optional[TreeRecipe] = None, backe
     p, r = _sign_points(b, root, n, rng)
     ref = b.eval_root(root, p)
     views = {"eval_root_grad": b.eval_root_grad(root, p)[0],
-             "decode(encode())": SceneBuilder_decode(ni, nr).eval_root(root, p),
-             backend_name(backend): np.asarray(backend.evaluate(ni, nr, root, p), float)}
-    if callable(getattr(backend, "evaluate_grad", None)):
-        views[backend_name(backend) + ".evaluate_grad"] = np.asarray(
-            backend.evaluate_grad(ni, nr, root, p)[0], float)
+             "decode(encode())": SceneBuilder_decode(ni, nr).eval_root(root, p)}
+    methods = ["evaluate"] + (["evaluate_grad"] if callable(getattr(backend, "evaluate_grad",
+                                                                     None)) else [])
+    for method in methods:
+        answer, why = ask(backend, method, ni, nr, root, p)
+        if why:
+            return _bad_answer("sign_agreement", "sign disagreement rate", "max", why)
+        views[backend_name(backend) + ("" if method == "evaluate" else "." + method)] = \
+            answer if method == "evaluate" else answer[0]
     if math.isfinite(r):
         sb = SceneBuilder_decode(ni, nr)
         sb.add_instance(root)
@@ -302,7 +361,9 @@ def sign_agreement(recipe: TreeRecipe, other: Optional[TreeRecipe] = None, backe
     keep = np.abs(ref) > band * (1.0 + (r if math.isfinite(r) else 1.0))
     worst_rate, text = 0.0, ""
     for label, phi in views.items():
-        dis = keep & (np.sign(phi) != np.sign(ref)) & (np.abs(phi) > band)
+        # a view answering 0 (on the surface) where the reference is clearly off it
+        # disagrees too: an engine answering constant zero must not pass
+        dis = keep & (np.sign(phi) != np.sign(ref))
         rate = float(dis.sum()) / max(int(keep.sum()), 1)
         if rate > worst_rate:
             k = int(np.argmax(dis))
@@ -350,8 +411,10 @@ def distance_agreement(recipe: TreeRecipe, backend_a=None, backend_b=None, n: in
     bb = check_backend(backend_b or ReferenceBackend())
     b, root, ni, nr = _encode(recipe)
     p, r = _sign_points(b, root, n, _rng("dist", ni.tobytes(), nr.tobytes()))
-    pa = np.asarray(a.evaluate(ni, nr, root, p), float)
-    pb = np.asarray(bb.evaluate(ni, nr, root, p), float)
+    pa, why_a = ask(a, "evaluate", ni, nr, root, p)
+    pb, why_b = ask(bb, "evaluate", ni, nr, root, p)
+    if why_a or why_b:
+        return _bad_answer("distance_agreement", "max |phi_a - phi_b|", "max", why_a or why_b)
     diff = np.abs(pa - pb)
     k = int(np.argmax(diff))
     tol = rtol * (1.0 + (r if math.isfinite(r) else 1.0))
@@ -364,47 +427,24 @@ def distance_agreement(recipe: TreeRecipe, backend_a=None, backend_b=None, n: in
 
 # ---------------------------------------------------------------------------- quadrature
 def closed_form(recipe: TreeRecipe):
-    """(volume, centre of mass (3,), principal moments (3,) ascending or None) of a one-leaf
-    recipe at unit density, from closed forms; None if the leaf has none here."""
+    """(volume, centre of mass (3,), principal moments (3,) ascending) of a one-leaf recipe at
+    unit density, moved by the leaf's transform (rotation, scale s: volume s^3, moments s^5),
+    from the leaf table's closed forms
+    (:func:`peclet.core.geom.leaves.closed_form_mass_properties`); None if it has none."""
+    from peclet.core.geom import quat_to_matrix
+    from peclet.core.geom.leaves import closed_form_mass_properties
     node = recipe.root
     if not hasattr(node, "kind") or recipe.reframes:
         return None
-    k, a = node.kind, node.params
-    pi = math.pi
-    if k == "sphere":
-        v = 4 / 3 * pi * a[0] ** 3
-        mom = [0.4 * v * a[0] ** 2] * 3
-    elif k == "box":
-        v = 8 * a[0] * a[1] * a[2]
-        x2, y2, z2 = a[0] ** 2, a[1] ** 2, a[2] ** 2
-        mom = [v / 3 * (y2 + z2), v / 3 * (x2 + z2), v / 3 * (x2 + y2)]
-    elif k == "ellipsoid":
-        v = 4 / 3 * pi * a[0] * a[1] * a[2]
-        x2, y2, z2 = a[0] ** 2, a[1] ** 2, a[2] ** 2
-        mom = [v / 5 * (y2 + z2), v / 5 * (x2 + z2), v / 5 * (x2 + y2)]
-    elif k == "hollow_cylinder":
-        ro, h, t = a
-        ri = ro - t
-        v = pi * (ro ** 2 - ri ** 2) * h
-        iy = 0.5 * v * (ro ** 2 + ri ** 2)
-        ix = v * ((ro ** 2 + ri ** 2) / 4 + h ** 2 / 12)
-        mom = [ix, iy, ix]
-    elif k == "torus":
-        R, r = a
-        v = 2 * pi ** 2 * R * r ** 2
-        iy = v * (R ** 2 + 0.75 * r ** 2)
-        ix = v * (0.5 * R ** 2 + 0.625 * r ** 2)
-        mom = [ix, iy, ix]
-    elif k == "capsule":
-        r, L = a
-        v = pi * r ** 2 * (4 / 3 * r + 2 * L)
-        mom = None
-    else:
+    exact = closed_form_mass_properties(node.kind, list(node.params))
+    if exact is None:
         return None
-    s = node.transform.scale
-    com = np.asarray(node.transform.translation, float)
-    principal = None if mom is None else np.sort(np.asarray(mom) * s ** 5)
-    return v * s ** 3, com, principal
+    tr = node.transform
+    s = float(tr.scale)
+    rot = quat_to_matrix(np.asarray(tr.rotation, float))
+    com = np.asarray(tr.translation, float) + s * rot @ np.asarray(exact.com, float)
+    principal = np.sort(np.linalg.eigvalsh(np.asarray(exact.inertia, float))) * s ** 5
+    return exact.volume * s ** 3, com, principal
 
 
 def reference_measure(builder, root, lo, hi, tol):
@@ -541,24 +581,6 @@ def determinism(state, pour: Optional[Callable] = None, threads=(1, 2)) -> Prope
 
 
 # ---------------------------------------------------------------------------- buffer growth
-def brute_force_contacts(builder, root, probes, positions, quaternions):
-    """Reference contacts of identical bodies (tree ``root`` of ``builder`` in the body frame,
-    shell ``probes`` (m, 3) on its surface, poses ``positions`` (n, 3) and ``quaternions``
-    (n, 4) as (x, y, z, w)): every ordered pair (a, b), a != b, with a probe of a strictly
-    inside b (phi_b < 0 by ``eval_root`` in b's frame). Returns sorted (a, b, probe index)."""
-    from peclet.core.geom import quat_to_matrix
-    rots = [quat_to_matrix(q) for q in quaternions]
-    out = []
-    for ia in range(len(positions)):
-        world = probes @ rots[ia].T + positions[ia]
-        for ib in range(len(positions)):
-            if ia != ib:
-                local = (world - positions[ib]) @ rots[ib]
-                out.extend((ia, ib, int(k)) for k in
-                           np.nonzero(builder.eval_root(root, local) < 0.0)[0])
-    return sorted(out)
-
-
 _BUFFER_CHILD = r"""
 import json, sys
 import numpy as np

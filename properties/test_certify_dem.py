@@ -1,6 +1,5 @@
 """Certification of the DEM engine: determinism of a pour, contact-buffer growth."""
 import pytest
-from hypothesis import settings
 from hypothesis import strategies as st
 
 from peclet_verify import properties as P
@@ -8,14 +7,16 @@ from peclet_verify import strategies as pst
 
 pytestmark = pytest.mark.peclet_certify
 
-# each example is a pour or a subprocess: a handful is what fits a CI budget; nightly scales
-FEW = settings(max_examples=min(settings.default.max_examples, 5))
+
+def few():
+    """Each example is a pour or a subprocess: a handful is what fits a CI budget."""
+    return P.profile_settings(max_examples=min(P.active_settings().max_examples, 5))
 
 
 def test_determinism_across_threads(peclet_certificate):
     peclet_certificate(P.search(
         lambda s: P.determinism(s), pst.rigid_states((2, 12), box=((0, 0.3, 0), (3, 3, 3))),
-        name="determinism (1 thread twice, 2 threads)", settings=FEW,
+        name="determinism (1 thread twice, 2 threads)", settings=few(),
         describe=lambda s: s.snippet()))
 
 
@@ -25,5 +26,5 @@ def test_buffer_growth(peclet_certificate):
         st.tuples(pst.trees(max_leaves=2, certified_only=True, transforms=False),
                   pst.capacity_sequences(max_size=4),
                   pst.rigid_states((2, 5), box=((0, 0, 0), (1.5, 1.5, 1.5)))),
-        name="buffer growth", settings=FEW,
+        name="buffer growth", settings=few(),
         describe=lambda a: f"{a[0]!r}\ncapacities = {a[1]!r}\n{a[2].snippet()}"))

@@ -264,7 +264,7 @@ def test_save_load_resumes_bitwise(tmp_path):
                 "get_angular_velocities"):
         assert np.array_equal(getattr(a, get)(), getattr(b, get)())
     assert a.num_contacts() > 0
-    assert not list(tmp_path.glob(".peclet-dem-*"))  # the temp file was renamed away
+    assert not list(tmp_path.glob(".peclet-*"))     # the temp file was renamed away
 
 
 def test_non_finite_state_stops_the_step_naming_the_particle():

@@ -115,7 +115,7 @@ def floor_wall(sim, size=40.0, centre=(0.0, 0.0), e=0.15, mu=0.5, y=0.0):
 def lowest_probe(sim, sp, i):
     P = sim.get_positions()[i]
     q = sim.get_quaternions()[i]
-    from peclet.dem.rigid import quat_to_matrix
+    from peclet.core.geom.transforms import quat_to_matrix
     R = quat_to_matrix(q)
     return float((P + sp.shell @ R.T)[:, 1].min())
 
@@ -160,7 +160,7 @@ def page_pour(sp, n=48, L=3.5, dt=2e-3, seed=5, capacity=None):
 def _max_depth_two_way(sim, sp, i, j):
     """Deepest probe of either body inside the other's exact tree (an independent check
     through the builder, not the engine's contact list)."""
-    from peclet.dem.rigid import quat_to_matrix
+    from peclet.core.geom.transforms import quat_to_matrix
     P = sim.get_positions()
     Q = sim.get_quaternions()
     worst = -np.inf
@@ -205,7 +205,7 @@ def _ring_on_floor(q):
 
 
 def test_pall_ring_dropped_on_floor_comes_to_rest_with_small_overlap():
-    from peclet.dem.rigid import quat_multiply
+    from peclet.core.geom.transforms import quat_multiply
     sp = pall_ring_particle()
     a = np.radians(8.0)                             # axis 8 degrees off vertical: lands on
     tilt = np.array([np.sin(a / 2), 0.0, 0.0, np.cos(a / 2)])   # its rim, then its face

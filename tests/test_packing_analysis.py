@@ -49,7 +49,7 @@ def test_periodic_images_and_rotation_of_a_pall_ring():
     el = E.pall_ring()
     ni, nr, _, _ = el.builder.encode()
     q = random_quats(1, 7)
-    pk = Pack([[0.05, 0.9, 1.95]], q, [2.0, 2.0], 0.0, ni, nr, el.root, 0.7072,
+    pk = Pack([[0.05, 0.9, 1.95]], q, [2.0, 2.0], 0.268, ni, nr, el.root, 0.7072,
               np.zeros((1, 3)), 1.0, [1, 1, 1], el.envelope_root, el.envelope_volume)
     geo = A.PackGeometry(pk)
     n = 300_000

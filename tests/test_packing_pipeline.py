@@ -25,7 +25,7 @@ def standin_particle(n_probes=500, seed=0):
     docstring): principal frame from a Monte Carlo inertia, probes Newton-projected onto the
     exact surface."""
     from peclet.core.geom import matrix_to_quat
-    from peclet.packing import analysis as A
+    from peclet.core.geom.mesh import surface_mesh
     from peclet.packing import elements as E
 
     el = E.pall_ring()
@@ -43,7 +43,7 @@ def standin_particle(n_probes=500, seed=0):
     if np.linalg.det(ax) < 0:
         ax[:, 2] *= -1
     home = b.add_reframed(r, translation=-(ax.T @ com), rotation=matrix_to_quat(ax.T))
-    v, _, _ = A.surface_mesh(b, home, 0.66, 80)
+    v, _, _ = surface_mesh(b, home, [-0.66] * 3, [0.66] * 3, 80)
     shell = v[g.choice(len(v), n_probes, replace=False)]
     for _ in range(4):
         phi, grad = b.eval_root_grad(home, shell)
@@ -63,10 +63,14 @@ def reduced_run(tmp_path_factory):
     from peclet.packing import pipeline
 
     out = tmp_path_factory.mktemp("pall")
+    # an earlier run's figure that this run does not write, and a file that is not ours
+    (out / "pour.gif").write_bytes(b"GIF89a stale")
+    (out / "notes.txt").write_text("mine")
     lines = []
-    res = pipeline.run(out=str(out), rings=8, seed=3, threads=None, steps_scale=0.08,
-                       box=3.0, mc_samples=20_000, sweep=(), mesh_n=60, progress=False,
-                       particle=standin_particle(), log=lines.append)
+    # 6 rings from y <= 2.85 land in 0.14 of the page's steps (check_run's landing rule)
+    res = pipeline.run(out=str(out), rings=6, seed=2, threads=None, steps_scale=0.14,
+                       box=3.5, mc_samples=20_000, sweep=(), mesh_n=60, progress=False,
+                       particle=standin_particle(), log=lines.append, overwrite=True)
     return out, res, "\n".join(lines)
 
 
@@ -75,7 +79,14 @@ def test_every_output_exists_and_is_sane(reduced_run):
     out, res, table = reduced_run
     names = set(os.listdir(out))
     assert {"pall_ring_pack.npz", "results.json"} | {f + ".png" for f in FIGS} <= names
-    assert not [n for n in names if n.startswith(".tmp")]
+    assert not [n for n in names if n.startswith(".")]          # no temp file left
+    # --overwrite cleared the earlier run's files (no stale pour.gif beside the new results)
+    # and left the user's own file alone
+    assert "pour.gif" not in names and (out / "notes.txt").read_text() == "mine"
+    umask = os.umask(0)
+    os.umask(umask)
+    for n in names - {"notes.txt"}:                 # written files respect the umask
+        assert os.stat(out / n).st_mode & 0o777 == 0o666 & ~umask, n
     for f in FIGS:
         img = mpimg.imread(out / (f + ".png"))
         assert img.shape[0] > 100 and img[..., :3].std() > 0.02, f
@@ -92,7 +103,7 @@ def test_every_output_exists_and_is_sane(reduced_run):
     assert 0.0 < k["eps"] < 1.0 and 0.0 < k["f_env"] < 1.0
     assert k["f_env"] > 1 - k["eps"]                      # the envelope holds the solid
     assert len(k["windows"]) == 3 and all(w["n_samples"] == 20_000 for w in k["windows"])
-    assert 0.0 <= k["double"] < 0.05 and k["z_mean"] >= 0 and len(k["cos"]) == 8
+    assert 0.0 <= k["double"] < 0.05 and k["z_mean"] >= 0 and len(k["cos"]) == 6
     assert all(0.0 <= v <= 1.0 for v in k["cos"])
     assert s["steps"] == js["config"]["protocol"]["pour_steps"] + 2 * \
         js["config"]["protocol"]["tap_steps"] + js["config"]["protocol"]["relax_steps"] + \
@@ -110,9 +121,9 @@ def test_frozen_pack_rebuilds_the_simulation(reduced_run):
 
     out, res, _ = reduced_run
     pk = load_pack(out / "pall_ring_pack.npz")
-    assert pk.n == 8 and pk.shell.shape[1] == 3 and np.isfinite(pk.mass)
+    assert pk.n == 6 and pk.shell.shape[1] == 3 and np.isfinite(pk.mass)
     sim, sid = pack_to_simulation(pk)
-    assert sim.num_particles() == 8
+    assert sim.num_particles() == 6
     assert np.array_equal(np.asarray(sim.get_positions(), float), pk.positions)
     sim.step()                                           # a consumer can carry on from it
     assert np.all(np.isfinite(np.asarray(sim.get_positions())))

@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 
 from peclet.core import geom
+from peclet.core.validation import PecletArgumentError
+from peclet.core.geom.leaves import closed_form_mass_properties
 from peclet.core.geom.transforms import quat_to_matrix
 
 Q = np.array([0.3, -0.5, 0.2, 0.78]) / np.linalg.norm([0.3, -0.5, 0.2, 0.78])
@@ -23,83 +25,76 @@ T = np.array([0.07, -0.05, 0.11])
 BOX = ([-0.75] * 3, [0.75] * 3)
 
 
-def _capsule_moments(a, L):
-    """Principal moments per unit volume of a capsule about y (radius a, half-length L)."""
-    vc = np.pi * a * a * 2 * L
-    vh = 2.0 / 3.0 * np.pi * a ** 3                       # one hemisphere
-    iy = vc * a * a / 2 + 2 * vh * 0.4 * a * a
-    ix = vc * (a * a / 4 + L * L / 3) + 2 * vh * (0.4 * a * a + L * L + 0.75 * a * L)
-    return np.array([ix, iy, ix]) / (vc + 2 * vh)
-
-
-def _tube_moments(ro, h, t):
-    ri = ro - t
-    return np.array([(ro ** 2 + ri ** 2) / 4 + h * h / 12, (ro ** 2 + ri ** 2) / 2,
-                     (ro ** 2 + ri ** 2) / 4 + h * h / 12])
-
-
-# kind, params, volume, principal moments per unit mass in the leaf frame (None: volume only)
-CLOSED = {
-    "sphere": ("sphere", [0.5], 4 / 3 * np.pi * 0.125, np.full(3, 0.4 * 0.25)),
-    "ellipsoid": ("ellipsoid", [0.5, 0.35, 0.25], 4 / 3 * np.pi * 0.5 * 0.35 * 0.25,
-                  np.array([0.35 ** 2 + 0.25 ** 2, 0.5 ** 2 + 0.25 ** 2, 0.5 ** 2 + 0.35 ** 2]) / 5),
-    "capsule": ("capsule", [0.25, 0.3], np.pi * 0.0625 * 0.6 + 4 / 3 * np.pi * 0.25 ** 3,
-                _capsule_moments(0.25, 0.3)),
-    "torus": ("torus", [0.4, 0.12], 2 * np.pi ** 2 * 0.4 * 0.0144,
-              np.array([0.4 ** 2 / 2 + 5 / 8 * 0.12 ** 2, 0.4 ** 2 + 0.75 * 0.12 ** 2,
-                        0.4 ** 2 / 2 + 5 / 8 * 0.12 ** 2])),
-    "box": ("box", [0.3, 0.2, 0.4], 8 * 0.3 * 0.2 * 0.4,
-            np.array([0.2 ** 2 + 0.4 ** 2, 0.3 ** 2 + 0.4 ** 2, 0.3 ** 2 + 0.2 ** 2]) / 3),
-    "hollow_cylinder": ("hollow_cylinder", [0.5, 0.8, 0.15], np.pi * 0.8 * (0.25 - 0.35 ** 2),
-                        _tube_moments(0.5, 0.8, 0.15)),
-    # frustum about y: r = 0.4 at y = -0.3, r = 0.2 at y = +0.3
-    "cone": ("cone", [0.4, 0.2, 0.3], np.pi * 0.6 / 3 * (0.16 + 0.08 + 0.04), None),
+# name -> (kind, params); exact values from the leaf table (leaves.closed_form_mass_properties)
+CASES = {
+    "sphere": ("sphere", [0.5]),
+    "ellipsoid": ("ellipsoid", [0.5, 0.35, 0.25]),
+    "capsule": ("capsule", [0.25, 0.3]),
+    "torus": ("torus", [0.4, 0.12]),
+    "box": ("box", [0.3, 0.2, 0.4]),
+    "hollow_cylinder": ("hollow_cylinder", [0.5, 0.8, 0.15]),
+    # frustum about y: r = 0.4 at y = -0.3, r = 0.2 at y = +0.3 (its com is below the origin)
+    "cone": ("cone", [0.4, 0.2, 0.3]),
 }
+
+
+def closed(name):
+    """The leaf's exact ClosedForm (unit density, canonical frame)."""
+    return closed_form_mass_properties(*CASES[name])
+
+
+def moments_per_volume(name):
+    """Principal moments per unit volume in the leaf frame (the canonical axes)."""
+    cf = closed(name)
+    return np.diag(cf.inertia) / cf.volume
+
+
 SMOOTH = ["sphere", "ellipsoid", "capsule", "torus"]
 CREASED = ["box", "hollow_cylinder", "cone"]
 _cache = {}
 
 
 def measure(name, n=32, tol=1e-9):
-    """(props, relative volume error, relative inertia error or None, exact volume)."""
+    """(props, relative volume error, relative inertia error, exact volume, com error) of
+    the leaf moved by (T, Q), against its closed form moved likewise."""
     key = (name, n, tol)
     if key not in _cache:
-        kind, prm, V, I = CLOSED[name]
+        kind, prm = CASES[name]
+        cf = closed(name)
         b = geom.SceneBuilder()
         r = b.add_leaf(kind, prm, translation=T, rotation=Q)
         p = b.body_properties(r, *BOX, n=n, tol=tol)
-        ev = abs(p.volume - V)
-        ei = None
-        if I is not None:
-            Iw = p.mass * (R @ np.diag(I) @ R.T)
-            ei = np.abs(p.inertia - Iw).max() / np.abs(Iw).max()
-        _cache[key] = (p, ev / V, ei, V)
+        V = cf.volume
+        Iw = R @ cf.inertia @ R.T
+        ei = np.abs(p.inertia - Iw).max() / np.abs(Iw).max()
+        ec = np.abs(p.com - (T + R @ cf.com)).max()
+        _cache[key] = (p, abs(p.volume - V) / V, ei, V, ec)
     return _cache[key]
 
 
 @pytest.mark.parametrize("name", SMOOTH)
 def test_smooth_leaves_offset_and_rotated(name):
-    p, ev, ei, V = measure(name)
+    p, ev, ei, V, ec = measure(name)
     assert ev <= 1e-10
     assert ev * V <= p.volume_error                        # the estimate bounds it
-    assert np.abs(p.com - T).max() <= 1e-9
+    assert ec <= 1e-9
     assert ei <= 1e-9
     assert ei * np.abs(p.inertia).max() <= p.moment_error
 
 
 @pytest.mark.parametrize("name", CREASED)
 def test_creased_leaves_offset_and_rotated(name):
-    p, ev, ei, V = measure(name)
+    p, ev, ei, V, ec = measure(name)
     assert ev <= 1e-8
     assert ev * V <= p.volume_error
-    if ei is not None:
-        assert ei <= 1e-8
-        assert ei * np.abs(p.inertia).max() <= p.moment_error
+    assert ec <= 1e-8
+    assert ei <= 1e-8
+    assert ei * np.abs(p.inertia).max() <= p.moment_error
 
 
 def test_rotated_box_principal_axes_within_1e_6_rad():
-    p, ev, ei, V = measure("box")
-    order = np.argsort(CLOSED["box"][3])
+    p, ev, ei, V, ec = measure("box")
+    order = np.argsort(moments_per_volume("box"))
     for k in range(3):
         cosang = abs(p.axes[:, k] @ R[:, order[k]])
         assert np.arccos(min(1.0, cosang)) < 1e-6
@@ -108,6 +103,7 @@ def test_rotated_box_principal_axes_within_1e_6_rad():
 def test_box_at_random_rotations_1e_8():
     """Eight random rotations and offsets of a box (its vertices sit anywhere in the cells):
     relative volume error <= 1e-8, and the estimate bounds it every time."""
+    V = closed("box").volume
     rng = np.random.default_rng(0)
     print("\nrotation, relative volume error, relative estimate")
     for k in range(8):
@@ -116,9 +112,9 @@ def test_box_at_random_rotations_1e_8():
         b = geom.SceneBuilder()
         r = b.add_leaf("box", [0.3, 0.2, 0.4], translation=rng.uniform(-0.1, 0.1, 3), rotation=q)
         p = b.body_properties(r, *BOX, n=32, tol=1e-9)
-        ev = abs(p.volume - 0.192)
-        print(f"{k}  {ev / 0.192:.2e}  {p.volume_error / 0.192:.2e}")
-        assert ev / 0.192 <= 1e-8
+        ev = abs(p.volume - V)
+        print(f"{k}  {ev / V:.2e}  {p.volume_error / V:.2e}")
+        assert ev / V <= 1e-8
         assert ev <= p.volume_error
 
 
@@ -128,7 +124,7 @@ def test_tol_is_relative_to_the_solid_not_the_box():
     certificate's old counterexample: 4.5e-4 at tol 1e-4 when tol scaled with the box)."""
     b = geom.SceneBuilder()
     r = b.add_leaf("ellipsoid", [1.0, 0.25, 0.125])
-    V = 4 / 3 * np.pi * 0.25 * 0.125
+    V = closed_form_mass_properties("ellipsoid", [1.0, 0.25, 0.125]).volume
     for tol in (1e-4, 1e-5):
         p = b.body_properties(r, [-1.02] * 3, [1.02] * 3, n=32, tol=tol)
         err = abs(p.volume - V)
@@ -142,11 +138,12 @@ def test_thin_torus_grazing_the_lines_does_not_overflow():
     come 7.6e-10 apart until a cell ran out of slots (ValueError at every tol). A flicker zone
     is now stepped over: tol 1e-4 gives 1.2e-5 against an estimate of 4.9e-5."""
     b = geom.SceneBuilder()
-    r = b.add_leaf("torus", [0.6793795475329985, 0.06667723971069595],
+    prm, scale = [0.6793795475329985, 0.06667723971069595], 1.3696566909119232
+    r = b.add_leaf("torus", prm,
                    rotation=[-0.19692509510850928, 0.6613794630298571, 0.6623653937932338,
-                             0.29166727259666414], scale=1.3696566909119232)
+                             0.29166727259666414], scale=scale)
     c, rad, _ = b.node_bound(r)
-    V = 2 * np.pi ** 2 * 0.6793795475329985 * 0.06667723971069595 ** 2 * 1.3696566909119232 ** 3
+    V = closed_form_mass_properties("torus", prm).volume * scale ** 3
     p = b.body_properties(r, c - 1.02 * rad, c + 1.02 * rad, n=32, tol=1e-4)
     assert abs(p.volume - V) <= p.volume_error <= 1e-4 * p.volume
 
@@ -172,8 +169,7 @@ def _tube_properties(t, tol):
     r = b.add_leaf("hollow_cylinder", t["params"], translation=t["translation"],
                    rotation=t["rotation"], scale=t["scale"])
     c, rad, _ = b.node_bound(r)
-    r_out, h, thick = t["params"]
-    V = np.pi * h * (r_out ** 2 - (r_out - thick) ** 2) * t["scale"] ** 3
+    V = closed_form_mass_properties("hollow_cylinder", t["params"]).volume * t["scale"] ** 3
     return b.body_properties(r, c - 1.02 * rad, c + 1.02 * rad, n=32, tol=tol), V
 
 
@@ -184,7 +180,8 @@ def test_near_tangent_line_finds_its_run_past_the_halving_cap():
     and one quadrature of the turned tube below took 30 s. Every line at depth 1e-12 to 1e-6
     whose tangent point lies in the span must now report its two roots."""
     from peclet.core.geom import kernels as K
-    from peclet.core.geom import quadrature as Q
+    from peclet.core.geom.quadrature.constants import LINE_EXTRA_LOOSE
+    from peclet.core.geom.quadrature.line_search import line_roots
     t = _TURNED_TUBE
     b = geom.SceneBuilder()
     r = b.add_leaf("hollow_cylinder", t["params"], translation=t["translation"],
@@ -204,8 +201,8 @@ def test_near_tangent_line_finds_its_run_past_the_halving_cap():
             if not (x0 + 1e-3 < s * axis[0] < x1 - 1e-3 and abs(s) < half - 1e-3):
                 continue
             roots, leaves = np.empty(128), np.empty(128)
-            nr, inside = Q._line(P, 0, 2, 1, z_low + depth, y, x0, x1, Q.LINE_EXTRA_LOOSE, st,
-                                 roots, leaves, 0)
+            nr, inside = line_roots(P, 0, 2, 1, z_low + depth, y, x0, x1, LINE_EXTRA_LOOSE, st,
+                                    roots, leaves, 0)
             checked += 1
             if nr != 2 or inside:
                 missed.append((depth, y, nr))
@@ -228,7 +225,8 @@ def test_turned_and_tilted_tubes_within_tol():
 def test_convergence_order_on_smooth_leaves(name):
     """Top-level cells halved (n = 24, 48, 96: 6, 12, 24 cells per axis; tol loose, so no
     adaptive refinement): order >= 4."""
-    kind, prm, V, _ = CLOSED[name]
+    kind, prm = CASES[name]
+    V = closed(name).volume
     b = geom.SceneBuilder()
     r = b.add_leaf(kind, prm, translation=T, rotation=Q)
     rows = []
@@ -320,10 +318,10 @@ def test_pall_ring_against_its_exact_mass_properties():
 
 
 def test_ellipsoid_principal_axes_and_frame():
-    p, ev, ei, V = measure("ellipsoid")
+    p, ev, ei, V, ec = measure("ellipsoid")
     # ascending moments; the columns of axes are the body axes x, y, z rotated by Q
-    assert np.allclose(p.principal / p.mass, np.sort(CLOSED["ellipsoid"][3]), rtol=1e-7)
-    order = np.argsort(CLOSED["ellipsoid"][3])
+    assert np.allclose(p.principal / p.mass, np.sort(moments_per_volume("ellipsoid")), rtol=1e-7)
+    order = np.argsort(moments_per_volume("ellipsoid"))
     for k in range(3):
         cosang = abs(p.axes[:, k] @ R[:, order[k]])
         assert np.arccos(min(1.0, cosang)) < 1e-6
@@ -375,14 +373,22 @@ def test_bad_input():
     s = b.add_leaf("sphere", [0.5])
     with pytest.raises(ValueError, match="box does not contain the solid"):
         b.body_properties(s, [-0.4] * 3, [0.6] * 3)
-    with pytest.raises(ValueError, match="hi must exceed lo"):
+    with pytest.raises(ValueError, match="hi must be greater than lo"):
         b.body_properties(s, [1.0] * 3, [0.6] * 3)
     with pytest.raises(ValueError, match="lo must be 3 finite"):
         b.body_properties(s, [np.nan, 0, 0], [0.6] * 3)
     with pytest.raises(ValueError, match="density"):
         b.body_properties(s, *BOX, density=0.0)
-    with pytest.raises(ValueError, match="resolution"):
+    with pytest.raises(ValueError, match="n must be an integer in"):
         b.body_properties(s, *BOX, n=1)
+    # argument errors are PecletArgumentError, raised before any work: a bool is not an
+    # integer, a string is not a number
+    with pytest.raises(PecletArgumentError, match="n must be an integer in"):
+        b.body_properties(s, *BOX, n=True)
+    with pytest.raises(PecletArgumentError, match="tol must be a finite number in"):
+        b.body_properties(s, *BOX, tol="1e-6")
+    with pytest.raises(PecletArgumentError, match="tol must be a finite number in"):
+        b.body_properties(s, *BOX, tol=1e-2)
     hole = b.add_difference(s, b.add_leaf("sphere", [0.55]))
     with pytest.raises(ValueError, match="empty solid"):
         b.body_properties(hole, *BOX, n=16)

@@ -58,9 +58,12 @@ def test_biased_cell_quadrature_is_caught():
     assert _nodes_in(res.counterexample) == 1, res.counterexample
 
 
-def test_closed_forms_match_a_fine_cell_rule():
-    # the closed forms themselves are checked against brute force (2 % at n=48, first order)
-    recipe = pst.TreeRecipe(pst.LeafCall("torus", (0.8, 0.3), pst.Transform(
+@pytest.mark.parametrize("kind, params", [("torus", (0.8, 0.3)), ("capsule", (0.3, 0.5)),
+                                          ("cone", (0.5, 0.2, 0.4))])
+def test_closed_forms_match_a_fine_cell_rule(kind, params):
+    # the closed forms, moved by a rotation, translation and scale (the cone's com is off its
+    # origin), are checked against brute force (2 % at n=48, first order)
+    recipe = pst.TreeRecipe(pst.LeafCall(kind, params, pst.Transform(
         (0.1, 0.2, -0.3), (0.0, 0.3826834323650898, 0.0, 0.9238795325112867), 1.3)))
     v0, com0, mom0 = P.closed_form(recipe)
     b, root = recipe.build()
@@ -121,3 +124,55 @@ def test_buffer_never_grown_is_caught_and_grown_one_passes():
     good = P.buffer_growth(recipe, [1, 2], state,
                            engine="peclet_verify.planted:growing_buffer_engine")
     assert good.status == "passed" and good.details["reference_pairs"] == 3
+
+
+# ------------------------------------------------- engines answering what is not a finite phi
+# the certificates that ask the engine under certification (properties/test_certify_geometry.py)
+BACKEND_CERTIFICATES = {
+    "equation1 (reference rule)": lambda r, be: P.equation1(r, be, claimed_by="reference", n=32),
+    "equation1 (backend claims)": lambda r, be: P.equation1(r, be, claimed_by="backend", n=32),
+    "sign agreement": lambda r, be: P.sign_agreement(r, backend=be, n=32),
+    "sign agreement (same solid)": lambda r, be: P.sign_agreement(
+        r, other=r.reframed(pst.Transform()).reframed(pst.Transform()), backend=be, n=32),
+    "distance agreement": lambda r, be: P.distance_agreement(r, None, be, n=32),
+}
+CERTIFIED_TREE = pst.TreeRecipe(pst.LeafCall("torus", (0.8, 0.3), pst.Transform(
+    (0.1, 0.2, -0.3), (0.0, 0.3826834323650898, 0.0, 0.9238795325112867), 1.3)))
+SHOWN = {"nan": "non-finite", "inf": "non-finite", "none": "returned None",
+         "empty": "shape (0,)", "short": "shape (31,)", "zero": "=0.0",
+         "raise": "raised RuntimeError"}
+
+
+@pytest.mark.parametrize("bad", sorted(planted.BAD_ANSWERS))
+def test_every_bad_answer_fails_every_backend_certificate(bad):
+    """Each planted unusable answer FAILS each certificate, and the answer is in the text."""
+    backend = planted.BadAnswerBackend(bad)
+    assert CERTIFIED_TREE.build()[0].node_bound(CERTIFIED_TREE.build()[1])[2]  # Eq. 1 applies
+    for label, certify in BACKEND_CERTIFICATES.items():
+        res = certify(CERTIFIED_TREE, backend)
+        assert res.status == "failed" and not res.passed, (bad, label, res)
+        shown = SHOWN[bad] if bad != "zero" or "distance" not in label else "vs 0.0;"
+        assert shown in res.counterexample and backend.name in res.counterexample, \
+            (label, res.counterexample)
+    assert P.equation1(CERTIFIED_TREE, P.ReferenceBackend(), n=32).status == "passed"
+
+
+def test_bad_answers_fail_through_search_with_the_answer_shown():
+    res = P.search(lambda r: P.distance_agreement(r, None, planted.BadAnswerBackend("nan"), n=16),
+                   pst.trees(max_leaves=2), settings=settings(FAST, max_examples=3))
+    assert res.status == "failed" and res.worst == float("inf")
+    assert "nan, nan" in res.counterexample and "shrunk input" in res.counterexample
+
+
+def test_a_bound_answering_nan_fails_equation1():
+    class NanBound(P.ReferenceBackend):
+        name = "nan-bound"
+
+        def bound(self, ni, nr, root):
+            return np.zeros(3), float("nan"), True
+    res = P.equation1(CERTIFIED_TREE, NanBound(), n=16)
+    assert res.status == "failed" and "radius nan" in res.counterexample
+
+
+# the NaN engine through the real `pytest --peclet-certify --peclet-backend -n 2` route:
+# tests/test_verify_options.py::test_xdist_report_holds_every_certificate

@@ -7,7 +7,6 @@ import textwrap
 
 DOWNSTREAM = textwrap.dedent('''
     import pytest
-    from hypothesis import settings
     from peclet_verify import properties as P
     from peclet_verify import strategies as pst
 
@@ -15,8 +14,9 @@ DOWNSTREAM = textwrap.dedent('''
     def test_my_engine_signs(peclet_certificate, peclet_backend):
         peclet_certificate(P.search(lambda r: P.sign_agreement(r, backend=peclet_backend, n=32),
                                     pst.trees(max_leaves=3), name="downstream sign agreement",
-                                    # ci seeds by the name: a torus by example 5; margin
-                                    settings=settings(max_examples=30, deadline=None)))
+                                    # the profile's settings (ci: seeded by the name, a torus
+                                    # by example 5), with more examples for margin
+                                    settings=P.profile_settings(max_examples=30)))
 
     def test_ordinary():
         assert pst.TreeRecipe is not None

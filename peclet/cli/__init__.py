@@ -1,6 +1,8 @@
 """The ``peclet`` command line: one module per subcommand, assembled here.
 
     peclet pall-ring ...   the reference page end to end (peclet.cli.pall_ring)
+    peclet pack ...        any element into any container (peclet.cli.pack)
+    peclet ensemble ...    many packs at once on Dask (peclet.cli.ensemble)
 
 Each subcommand module exposes ``add_parser(subparsers)`` (registers its options and sets
 ``func``) and is listed in :data:`SUBCOMMANDS`. A :class:`~peclet.core.validation.
@@ -16,7 +18,7 @@ import sys
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
 #: Modules (relative to this package) that each add one subcommand.
-SUBCOMMANDS = ("pall_ring",)
+SUBCOMMANDS = ("pall_ring", "ensemble", "pack")
 
 
 def build_parser():

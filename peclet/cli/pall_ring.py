@@ -1,77 +1,71 @@
 """``peclet pall-ring``: the reference page end to end.
 
-    peclet pall-ring [--out DIR] [--rings N] [--seed S] [--threads T] [--steps-scale F]
-                     [--mc-samples K] [--no-figures] [--quiet]
+    peclet pall-ring [--out DIR] [--overwrite] [--rings N] [--seed S] [--threads T]
+                     [--steps-scale F] [--box L] [--mc-samples K] [--shell-points M]
+                     [--animation] [--no-figures] [--quiet]
 
 runs the reference page end to end (:func:`peclet.packing.pipeline.run`), prints the page's
 Results table with our numbers beside the page's, and writes the figures, the frozen pack
 (``pall_ring_pack.npz``) and ``results.json`` into DIR.
+
+Every option is checked before the ring is built (the rules and caps are stated in
+:mod:`peclet.packing.pipeline_checks`): a bad one is a single ``peclet pall-ring: error:``
+line naming it, exit code 2, and nothing written. A DIR holding an earlier run's files is
+refused unless ``--overwrite``, which removes those files first.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 
 __all__ = ["add_parser", "run"]
 
 
-def _positive_int(name):
-    def parse(s):
-        try:
-            v = int(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {s!r}")
-        if v < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {s!r}")
-        return v
-    return parse
+def _as(name, text, kind):
+    """``text`` as ``kind`` (int or float), or a PecletArgumentError naming the option.
 
+    Options are parsed as text and converted here rather than by argparse ``type=``: argparse
+    reports a bad value as a usage block and exits from inside the parser, where this is one
+    ``peclet pall-ring: error:`` line (exit 2) like every other refusal."""
+    from peclet.core.validation import PecletArgumentError
 
-def _positive_float(name):
-    def parse(s):
-        try:
-            v = float(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number > 0, got {s!r}")
-        if not v > 0 or v != v or v == float("inf"):
-            raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {s!r}")
-        return v
-    return parse
-
-
-def _threads(s):
-    import numba
-
-    cap = int(numba.config.NUMBA_NUM_THREADS)
+    if text is None or not isinstance(text, str):
+        return text
     try:
-        v = int(s)
+        return kind(text.strip())
     except ValueError:
-        v = 0
-    if not 1 <= v <= cap:
-        raise argparse.ArgumentTypeError(
-            f"--threads must be an integer in [1, {cap}] (NUMBA_NUM_THREADS={cap}), got {s!r}")
-    return v
+        raise PecletArgumentError(name, "an integer" if kind is int else "a number",
+                                  text) from None
 
 
 def add_parser(sub):
+    from peclet.packing import pipeline_checks as C
+
     pr = sub.add_parser("pall-ring", help="run the Pall-ring page end to end",
                         description="Pour Pall rings into a periodic box (the reference page, "
                         "Steps 1-7), analyse the pack, write figures, npz and results.json.")
     pr.set_defaults(func=run)
     pr.add_argument("--out", default="results", help="output directory (default: ./results)")
-    pr.add_argument("--rings", type=_positive_int("--rings"), default=48,
-                    help="number of rings (default 48, the page's)")
-    pr.add_argument("--seed", type=int, default=5, help="start-cloud seed (default 5)")
-    pr.add_argument("--threads", type=_threads, default=None,
+    pr.add_argument("--overwrite", action="store_true",
+                    help="replace the files of an earlier run in --out (they are removed "
+                    "first; other files are never touched)")
+    pr.add_argument("--rings", default="48",
+                    help=f"number of rings, 1..{C.RINGS_MAX} (default 48, the page's)")
+    pr.add_argument("--seed", default="5", help="start-cloud seed >= 0 (default 5)")
+    pr.add_argument("--threads", default=None,
                     help="numba threads, 1..NUMBA_NUM_THREADS (default: numba's)")
-    pr.add_argument("--steps-scale", type=_positive_float("--steps-scale"), default=1.0,
-                    help="multiply every protocol step count (default 1 = the page's 3700)")
-    pr.add_argument("--box", type=_positive_float("--box"), default=3.5,
-                    help="periodic box side in ring diameters (default 3.5)")
-    pr.add_argument("--mc-samples", type=_positive_int("--mc-samples"), default=400_000,
-                    help="Monte Carlo points per bulk window (default 400000)")
-    pr.add_argument("--shell-points", type=_positive_int("--shell-points"), default=1200,
-                    help="surface probes per ring (default 1200)")
+    pr.add_argument("--steps-scale", default="1.0",
+                    help=f"multiply every protocol step count, (0, {C.STEPS_SCALE_MAX:g}] "
+                    "(default 1 = the page's 3700)")
+    pr.add_argument("--box", default="3.5",
+                    help="periodic box side in ring diameters (default 3.5); it must exceed "
+                    "the engine's bound for the ring and let the start cloud of --rings land "
+                    "before the quench (peclet.packing.pipeline_checks states both rules)")
+    pr.add_argument("--mc-samples", default="400000",
+                    help=f"Monte Carlo points per bulk window, {C.MC_SAMPLES_MIN}.."
+                    f"{C.MC_SAMPLES_MAX} (default 400000)")
+    pr.add_argument("--shell-points", default="1200",
+                    help=f"surface probes per ring, {C.SHELL_POINTS_MIN}..{C.SHELL_POINTS_MAX} "
+                    "(default 1200)")
     pr.add_argument("--animation", action="store_true",
                     help="also render the pour as pour.gif (adds 10-20 s)")
     pr.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -80,14 +74,21 @@ def add_parser(sub):
 
 
 def run(args):
-    from peclet.packing import pipeline
+    """Convert and check every option (:func:`peclet.packing.pipeline_checks.check_run`, with
+    the options' names) before anything is built or written, then run the page."""
+    from peclet.packing import pipeline, pipeline_checks
 
-    if args.threads is not None:
-        pipeline.set_threads(args.threads)
-    res = pipeline.run(out=args.out, rings=args.rings, seed=args.seed, threads=args.threads,
-                       steps_scale=args.steps_scale, box=args.box,
-                       mc_samples=args.mc_samples, shell_points=args.shell_points,
-                       progress=not args.quiet, write_figures=not args.no_figures,
+    kw = dict(out=args.out, rings=_as("--rings", args.rings, int),
+              seed=_as("--seed", args.seed, int), threads=_as("--threads", args.threads, int),
+              steps_scale=_as("--steps-scale", args.steps_scale, float),
+              box=_as("--box", args.box, float),
+              mc_samples=_as("--mc-samples", args.mc_samples, int),
+              shell_points=_as("--shell-points", args.shell_points, int),
+              overwrite=args.overwrite)
+    pipeline_checks.check_run(**kw, cli=True)
+    if kw["threads"] is not None:
+        pipeline.set_threads(kw["threads"], "--threads")
+    res = pipeline.run(**kw, progress=not args.quiet, write_figures=not args.no_figures,
                        animation=args.animation)
     print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
     return 0

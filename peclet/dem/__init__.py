@@ -1,7 +1,11 @@
 """peclet.dem: rigid-body DEM of composed analytic particles.
 
-``Simulation`` is the engine; ``scene_particle`` turns a CSG tree into a registered particle
-(mass properties, principal frame, shell probes). Both load lazily so that importing one layer
+``Simulation`` is the engine, a facade over named parts: ``bodies`` (per-particle state),
+``shapes`` (shapes, walls and the flat ``Geometry`` the kernels read), ``domain``, ``contacts``
+(detection and the warm-start cache; kernels in ``broadphase``/``narrowphase``), ``materials``,
+``solver``, ``rigid`` (the rotor step), ``guards`` and ``persistence`` (save/load).
+``scene_particle`` turns a CSG tree into a registered particle (mass properties, principal
+frame, shell probes). Both load lazily so that importing one layer
 never drags in the other's compilation.
 """
 import importlib

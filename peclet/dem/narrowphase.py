@@ -30,12 +30,12 @@ slots; all choices break ties by the lowest index.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from peclet.core.geom.kernels import MAX_STACK, STACK_COLS, eval_point
-from peclet.dem.rigid import quat_to_matrix
 
 MAX_CLUSTERS = 4
 POINTS_PER_CLUSTER = 4
@@ -51,9 +51,27 @@ _HX, _HN, _HG, _HF = 0, 3, 6, 7
 HIT_COLS = 8
 
 
+class Tasks(NamedTuple):
+    """Candidate pairs: body ``a`` (T,), body ``b`` (T,) (a wall is -1 - index) and the image
+    ``shift`` (T, 3) added to b's position (periodic minimum image; zero for walls)."""
+    a: np.ndarray
+    b: np.ndarray
+    shift: np.ndarray
+
+
+class Slots(NamedTuple):
+    """Output buffers: task t writes ``count[t]`` contacts from slot ``t * MAX_PER_TASK``:
+    ``point`` (S, 3) world, ``normal`` (S, 3) unit from b to a, ``gap`` (S,), ``feat`` (S,)."""
+    count: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    gap: np.ndarray
+    feat: np.ndarray
+
+
 @njit(cache=True, inline="always")
-def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin,
-                   ops, lk, lr, st, hits, nh):
+def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin, geo, st,
+                   hits, nh):
     """A point (a probe with r = 0, or a sphere's centre with its radius r) against a tree
     placed at xt with rotation Rt; ``sgn`` = -1 for an inverted wall. Appends at most one hit."""
     dx = px - xt[0]
@@ -65,7 +83,7 @@ def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin
     lim = trad + r + margin
     if qx * qx + qy * qy + qz * qz > lim * lim:
         return nh
-    phi, gx, gy, gz = eval_point(ops, lk, lr, o0, o1, qx, qy, qz, st)
+    phi, gx, gy, gz = eval_point(geo.ops, geo.lk, geo.lr, o0, o1, qx, qy, qz, st)
     phi = sgn * phi - r
     if not (phi < margin):
         return nh
@@ -92,11 +110,13 @@ def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin
 
 
 @njit(cache=True, inline="always")
-def _probes_vs_tree(xa, Ra, s, shape_p0, shape_cl, cl_centre, cl_rad, cl_range, probes,
-                    xt, Rt, o0, o1, sgn, lip, trad, nsign, fbase, margin,
-                    ops, lk, lr, st, hits, nh):
+def _probes_vs_tree(xa, Ra, s, geo, xt, Rt, o0, o1, sgn, lip, trad, nsign, fbase, margin,
+                    st, hits, nh):
     """Body a's shell probes (shape s, at xa with rotation Ra) against a tree. Clusters whose
     bounding sphere is provably farther than the margin are skipped (1-Lipschitz trees only)."""
+    shape_p0, shape_cl, probes = geo.shape_p0, geo.shape_cl, geo.probes
+    cl_centre, cl_rad, cl_range = geo.cl_centre, geo.cl_rad, geo.cl_range
+    ops, lk, lr = geo.ops, geo.lk, geo.lr
     for c in range(shape_cl[s, 0], shape_cl[s, 1]):
         cx = xa[0] + Ra[0, 0] * cl_centre[c, 0] + Ra[0, 1] * cl_centre[c, 1] + Ra[0, 2] * cl_centre[c, 2]
         cy = xa[1] + Ra[1, 0] * cl_centre[c, 0] + Ra[1, 1] * cl_centre[c, 1] + Ra[1, 2] * cl_centre[c, 2]
@@ -119,7 +139,7 @@ def _probes_vs_tree(xa, Ra, s, shape_p0, shape_cl, cl_centre, cl_rad, cl_range, 
             py = xa[1] + Ra[1, 0] * probes[p, 0] + Ra[1, 1] * probes[p, 1] + Ra[1, 2] * probes[p, 2]
             pz = xa[2] + Ra[2, 0] * probes[p, 0] + Ra[2, 1] * probes[p, 1] + Ra[2, 2] * probes[p, 2]
             nh = _point_vs_tree(px, py, pz, 0.0, xt, Rt, o0, o1, sgn, trad, nsign,
-                                fbase + p - shape_p0[s], margin, ops, lk, lr, st, hits, nh)
+                                fbase + p - shape_p0[s], margin, geo, st, hits, nh)
     return nh
 
 
@@ -214,22 +234,20 @@ def _reduce(hits, nh, lab, reps, tol2, touch, base, out_point, out_normal, out_g
 
 
 @njit(cache=True)
-def _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
-           shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
-           cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
-           max_hits, tol2, touch, out_count, out_point, out_normal, out_gap, out_feat):
+def _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots):
     """Tasks [ch * size, (ch + 1) * size): gather each task's hits, reduce them into its
     own slots."""
+    shape_kind, shape_rad, shape_op = geo.shape_kind, geo.shape_rad, geo.shape_op
     st = np.empty((MAX_STACK, STACK_COLS))
-    hits = np.empty((max_hits, HIT_COLS))
-    lab = np.empty(max_hits, np.int64)
+    hits = np.empty((geo.max_hits, HIT_COLS))
+    lab = np.empty(geo.max_hits, np.int64)
     reps = np.empty(MAX_CLUSTERS, np.int64)
     xb = np.empty(3)
     ident = np.eye(3)
     origin = np.zeros(3)
-    for t in range(ch * size, min(task_a.shape[0], (ch + 1) * size)):
-        a = task_a[t]
-        b = task_b[t]
+    for t in range(ch * size, min(tasks.a.shape[0], (ch + 1) * size)):
+        a = tasks.a[t]
+        b = tasks.b[t]
         sa = shape_of[a]
         xa = pos[a]
         Ra = rot[a]
@@ -237,7 +255,7 @@ def _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
         if b >= 0:
             sb = shape_of[b]
             for e in range(3):
-                xb[e] = pos[b, e] + task_shift[t, e]
+                xb[e] = pos[b, e] + tasks.shift[t, e]
             Rb = rot[b]
             if shape_kind[sa] == 0 and shape_kind[sb] == 0:
                 dx = xa[0] - xb[0]
@@ -265,104 +283,57 @@ def _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
             elif shape_kind[sa] == 0:
                 nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb,
                                     shape_op[sb, 0], shape_op[sb, 1], 1.0, shape_rad[sb],
-                                    1.0, 0, margin, ops, lk, lr, st, hits, nh)
+                                    1.0, 0, margin, geo, st, hits, nh)
             elif shape_kind[sb] == 0:
                 nh = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra,
                                     shape_op[sa, 0], shape_op[sa, 1], 1.0, shape_rad[sa],
-                                    -1.0, FEATURE_DIR, margin, ops, lk, lr, st, hits, nh)
+                                    -1.0, FEATURE_DIR, margin, geo, st, hits, nh)
             else:
-                nh = _probes_vs_tree(xa, Ra, sa, shape_p0, shape_cl, cl_centre, cl_rad,
-                                     cl_range, probes, xb, Rb, shape_op[sb, 0],
-                                     shape_op[sb, 1], 1.0, shape_lip[sb], shape_rad[sb],
-                                     1.0, 0, margin, ops, lk, lr, st, hits, nh)
-                nh = _probes_vs_tree(xb, Rb, sb, shape_p0, shape_cl, cl_centre, cl_rad,
-                                     cl_range, probes, xa, Ra, shape_op[sa, 0],
-                                     shape_op[sa, 1], 1.0, shape_lip[sa], shape_rad[sa],
-                                     -1.0, FEATURE_DIR, margin, ops, lk, lr, st, hits, nh)
+                nh = _probes_vs_tree(xa, Ra, sa, geo, xb, Rb, shape_op[sb, 0], shape_op[sb, 1],
+                                     1.0, geo.shape_lip[sb], shape_rad[sb], 1.0, 0, margin,
+                                     st, hits, nh)
+                nh = _probes_vs_tree(xb, Rb, sb, geo, xa, Ra, shape_op[sa, 0], shape_op[sa, 1],
+                                     1.0, geo.shape_lip[sa], shape_rad[sa], -1.0, FEATURE_DIR,
+                                     margin, st, hits, nh)
         else:
             w = -1 - b
-            sg = wall_sign[w]
-            o0 = wall_op[w, 0]
-            o1 = wall_op[w, 1]
+            sg = geo.wall_sign[w]
+            o0 = geo.wall_op[w, 0]
+            o1 = geo.wall_op[w, 1]
             skip = False
-            if wall_lip[w]:
+            if geo.wall_lip[w]:
                 # whole-body cull: phi is 1-Lipschitz and the body lies within its radius
-                phc = sg * eval_point(ops, lk, lr, o0, o1, xa[0], xa[1], xa[2], st)[0]
+                phc = sg * eval_point(geo.ops, geo.lk, geo.lr, o0, o1, xa[0], xa[1], xa[2],
+                                      st)[0]
                 skip = phc > shape_rad[sa] + margin
             if not skip:
                 if shape_kind[sa] == 0:
                     nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], origin, ident,
-                                        o0, o1, sg, np.inf, 1.0, 0, margin, ops, lk, lr,
-                                        st, hits, nh)
+                                        o0, o1, sg, np.inf, 1.0, 0, margin, geo, st, hits, nh)
                 else:
-                    nh = _probes_vs_tree(xa, Ra, sa, shape_p0, shape_cl, cl_centre, cl_rad,
-                                         cl_range, probes, origin, ident, o0, o1, sg,
-                                         wall_lip[w], np.inf, 1.0, 0, margin, ops, lk, lr,
-                                         st, hits, nh)
-        out_count[t] = _reduce(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
-                               out_point, out_normal, out_gap, out_feat)
+                    nh = _probes_vs_tree(xa, Ra, sa, geo, origin, ident, o0, o1, sg,
+                                         geo.wall_lip[w], np.inf, 1.0, 0, margin, st, hits, nh)
+        slots.count[t] = _reduce(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
+                                 slots.point, slots.normal, slots.gap, slots.feat)
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase(task_a, task_b, task_shift, pos, rot, shape_of,
-                 shape_kind, shape_rad, shape_op, shape_lip, shape_p0, shape_cl,
-                 cl_centre, cl_rad, cl_range, probes,
-                 wall_op, wall_sign, wall_lip,
-                 ops, lk, lr, margin, max_hits, tol2, touch, chunks,
-                 out_count, out_point, out_normal, out_gap, out_feat):
-    """Contacts of every task into its own ``MAX_PER_TASK`` slots; ``out_count[t]`` = used.
+def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, slots):
+    """Contacts of every task into its own ``MAX_PER_TASK`` slots; ``slots.count[t]`` = used.
 
-    ``chunks`` is the number of task chunks: 1 runs serially in the calling thread (small
-    problems, where a parallel launch costs more than it saves), otherwise fixed-size chunks
-    of TASK_CHUNK tasks run in parallel. Either way every task writes only its own slots, so
-    the result is identical."""
-    ntask = task_a.shape[0]
+    ``tasks`` a :class:`Tasks`; ``pos`` (N, 3) and ``rot`` (N, 3, 3) the bodies' centres and
+    home -> world rotations, ``shape_of`` (N,) their shape ids; ``geo`` the
+    :class:`peclet.dem.shapes.Geometry`; hits within ``margin`` are kept; ``tol2`` and ``touch``
+    tune the manifold reduction; ``slots`` a :class:`Slots`. ``chunks`` = 1 runs serially in
+    the calling thread (small problems, where a parallel launch costs more than it saves),
+    otherwise fixed-size chunks of TASK_CHUNK tasks run in parallel. Either way every task
+    writes only its own slots, so the result is identical."""
+    ntask = tasks.a.shape[0]
     size = TASK_CHUNK if chunks > 1 else max(ntask, 1)
     nchunk = (ntask + size - 1) // size
     if chunks > 1:
         for ch in prange(nchunk):
-            _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
-                   shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
-                   cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
-                   max_hits, tol2, touch, out_count, out_point, out_normal, out_gap, out_feat)
+            _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots)
     else:
         for ch in range(nchunk):
-            _chunk(ch, size, task_a, task_b, task_shift, pos, rot, shape_of, shape_kind,
-                   shape_rad, shape_op, shape_lip, shape_p0, shape_cl, cl_centre, cl_rad,
-                   cl_range, probes, wall_op, wall_sign, wall_lip, ops, lk, lr, margin,
-                   max_hits, tol2, touch, out_count, out_point, out_normal, out_gap, out_feat)
-
-
-@njit(cache=True)
-def rotation_matrices(quats):
-    """R (N, 3, 3) from unit quaternions (N, 4) (x, y, z, w), body -> world."""
-    n = quats.shape[0]
-    out = np.empty((n, 3, 3))
-    for i in range(n):
-        out[i] = quat_to_matrix(quats[i])
-    return out
-
-
-def cluster_probes(points, cell):
-    """Group probe points (M, 3) by a voxel grid of size ``cell``.
-
-    Returns (order (M,), cluster_range (C, 2), centre (C, 3), radius (C,)): ``points[order]``
-    lists the clusters' members contiguously; a cluster's sphere contains all its members.
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    if len(pts) == 0:
-        return (np.zeros(0, np.int64), np.zeros((0, 2), np.int64), np.zeros((0, 3)),
-                np.zeros(0))
-    key = np.floor((pts - pts.min(axis=0)) / cell).astype(np.int64)
-    order = np.lexsort((np.arange(len(pts)), key[:, 0], key[:, 1], key[:, 2]))
-    ks = key[order]
-    brk = np.flatnonzero(np.any(np.diff(ks, axis=0) != 0, axis=1)) + 1
-    starts = np.concatenate([[0], brk])
-    ends = np.concatenate([brk, [len(pts)]])
-    centre = np.empty((len(starts), 3))
-    radius = np.empty(len(starts))
-    for c, (s, e) in enumerate(zip(starts, ends)):
-        m = pts[order[s:e]]
-        centre[c] = m.mean(axis=0)
-        radius[c] = np.sqrt(((m - centre[c]) ** 2).sum(axis=1)).max() * (1.0 + 1e-12) + 1e-15
-    return order.astype(np.int64), np.stack([starts, ends], axis=1).astype(np.int64), centre, radius
+            _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots)

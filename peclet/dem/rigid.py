@@ -1,4 +1,8 @@
-"""Rigid-body rotation: quaternion helpers and a conservative torque-free rotor step.
+"""Rigid-body rotation: mass-property helpers and a conservative torque-free rotor step.
+
+The quaternion formulas themselves live in :mod:`peclet.core.geom.transforms` (one home);
+the rotor's test oracles (closed-form period, an ODE reference) in
+:mod:`peclet_verify.reference.rotor`.
 
 Conventions (DESIGN.md §5, algorithms.md "Rigid bodies"):
 
@@ -32,6 +36,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from peclet.core.geom.transforms import (multiply_xyzw, normalize_xyzw, quat_rotate,
+                                         quat_rotate_inv, quat_to_matrix, rotate_xyz)
+from peclet.core.validation import PecletArgumentError
+
 #: Upper bound on fixed-point iterations of the implicit midpoint step. The map contracts by
 #: roughly ``rho = dt |L| max(I^-1) / 2`` per iteration, so a DEM step (dt |omega| << 1) reaches
 #: machine precision in well under ten. 24 iterations reach it for rho < ~0.2; beyond that
@@ -44,85 +52,6 @@ MAX_NEWTON_ITERATIONS = 32
 #: velocity by no more than this many ulps of its largest component.
 _CONVERGED_ULPS = 4.0
 _EPS = 2.220446049250313e-16
-
-
-# --------------------------------------------------------------------------------------------
-# Quaternion helpers (x, y, z, w), active rotation body -> world
-# --------------------------------------------------------------------------------------------
-
-@njit(cache=True)
-def quat_normalize(q):
-    """Unit quaternion ``q / |q|`` (x, y, z, w). Raises ValueError for a zero or non-finite q."""
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    if not (n > 0.0 and n < np.inf):
-        raise ValueError("quat_normalize: q must be a finite, non-zero quaternion (x, y, z, w)")
-    out = np.empty(4)
-    for k in range(4):
-        out[k] = q[k] / n
-    return out
-
-
-@njit(cache=True)
-def quat_multiply(a, b):
-    """Hamilton product ``a b`` of quaternions (x, y, z, w): rotation ``b`` first, then ``a``."""
-    out = np.empty(4)
-    out[0] = a[3] * b[0] + b[3] * a[0] + a[1] * b[2] - a[2] * b[1]
-    out[1] = a[3] * b[1] + b[3] * a[1] + a[2] * b[0] - a[0] * b[2]
-    out[2] = a[3] * b[2] + b[3] * a[2] + a[0] * b[1] - a[1] * b[0]
-    out[3] = a[3] * b[3] - a[0] * b[0] - a[1] * b[1] - a[2] * b[2]
-    return out
-
-
-@njit(cache=True)
-def quat_to_matrix(q):
-    """Rotation matrix R (3, 3) of a unit quaternion (x, y, z, w): ``v_world = R v_body``."""
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    R = np.empty((3, 3))
-    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    R[0, 1] = 2.0 * (x * y - z * w)
-    R[0, 2] = 2.0 * (x * z + y * w)
-    R[1, 0] = 2.0 * (x * y + z * w)
-    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    R[1, 2] = 2.0 * (y * z - x * w)
-    R[2, 0] = 2.0 * (x * z - y * w)
-    R[2, 1] = 2.0 * (y * z + x * w)
-    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    return R
-
-
-@njit(cache=True)
-def _rot3(ux, uy, uz, w, vx, vy, vz):
-    # v' = v + w t + u x t with t = 2 u x v: the unit-quaternion sandwich q v q*, without
-    # forming the matrix. The inverse rotation is the same formula with u -> -u. Scalars in,
-    # a tuple out: no heap allocation in the per-body inner loops.
-    tx = 2.0 * (uy * vz - uz * vy)
-    ty = 2.0 * (uz * vx - ux * vz)
-    tz = 2.0 * (ux * vy - uy * vx)
-    return (vx + w * tx + (uy * tz - uz * ty),
-            vy + w * ty + (uz * tx - ux * tz),
-            vz + w * tz + (ux * ty - uy * tx))
-
-
-@njit(cache=True)
-def _rotate(ux, uy, uz, w, v):
-    x, y, z = _rot3(ux, uy, uz, w, v[0], v[1], v[2])
-    out = np.empty(3)
-    out[0] = x
-    out[1] = y
-    out[2] = z
-    return out
-
-
-@njit(cache=True)
-def quat_rotate(q, v):
-    """``R(q) v`` for a unit quaternion q (x, y, z, w): body -> world."""
-    return _rotate(q[0], q[1], q[2], q[3], v)
-
-
-@njit(cache=True)
-def quat_rotate_inv(q, v):
-    """``R(q)^T v`` for a unit quaternion q (x, y, z, w): world -> body."""
-    return _rotate(-q[0], -q[1], -q[2], q[3], v)
 
 
 # --------------------------------------------------------------------------------------------
@@ -164,6 +93,12 @@ def kinetic_energy_rot(q, omega_world, inv_inertia_body):
     wb = quat_rotate_inv(q, omega_world)
     L = _body_momentum(wb, inv_inertia_body)
     return 0.5 * (L[0] * wb[0] + L[1] * wb[1] + L[2] * wb[2])
+
+
+@njit(cache=True)
+def body_angular_momentum(q, omega_world, inv_inertia_body):
+    """Principal-frame angular momentum ``I R^T omega_world`` (3,); locked axes carry none."""
+    return _body_momentum(quat_rotate_inv(q, omega_world), inv_inertia_body)
 
 
 @njit(cache=True)
@@ -258,7 +193,7 @@ def _advance_into(q, omega_world, inv_inertia_body, dt, q_out, omega_out):
         q_out[0], q_out[1], q_out[2], q_out[3] = qx, qy, qz, qw
         omega_out[0], omega_out[1], omega_out[2] = ox, oy, oz
         return True
-    bx, by, bz = _rot3(-qx, -qy, -qz, qw, omega_world[0], omega_world[1], omega_world[2])
+    bx, by, bz = rotate_xyz(-qx, -qy, -qz, qw, omega_world[0], omega_world[1], omega_world[2])
     if d0 == 0.0 or d1 == 0.0 or d2 == 0.0:
         # Free components of the body angular velocity are constant (module docstring).
         wx = bx if d0 > 0.0 else 0.0
@@ -274,7 +209,7 @@ def _advance_into(q, omega_world, inv_inertia_body, dt, q_out, omega_out):
         converged = False
         for _ in range(MAX_FIXED_POINT_ITERATIONS):
             px, py, pz, pw = _cayley_quat(wx, wy, wz, dt)
-            L1x, L1y, L1z = _rot3(-px, -py, -pz, pw, L0x, L0y, L0z)
+            L1x, L1y, L1z = rotate_xyz(-px, -py, -pz, pw, L0x, L0y, L0z)
             vx = d0 * (0.5 * (L0x + L1x))
             vy = d1 * (0.5 * (L0y + L1y))
             vz = d2 * (0.5 * (L0z + L1z))
@@ -296,18 +231,14 @@ def _advance_into(q, omega_world, inv_inertia_body, dt, q_out, omega_out):
         # L_{n+1} and the orientation are built from the same, final w, so that
         # R_{n+1} L_{n+1} = R_n L_n holds to round-off.
         px, py, pz, pw = _cayley_quat(wx, wy, wz, dt)
-        L1x, L1y, L1z = _rot3(-px, -py, -pz, pw, L0x, L0y, L0z)
+        L1x, L1y, L1z = rotate_xyz(-px, -py, -pz, pw, L0x, L0y, L0z)
         nx, ny, nz = d0 * L1x, d1 * L1y, d2 * L1z
     # q_new = q p (the body-frame increment acts first), renormalised.
-    rx = qw * px + pw * qx + qy * pz - qz * py
-    ry = qw * py + pw * qy + qz * px - qx * pz
-    rz = qw * pz + pw * qz + qx * py - qy * px
-    rw = qw * pw - qx * px - qy * py - qz * pz
-    rn = math.sqrt(rx * rx + ry * ry + rz * rz + rw * rw)
-    if not (rn > 0.0 and rn < np.inf and abs(nx) + abs(ny) + abs(nz) < np.inf):
+    rx, ry, rz, rw = multiply_xyzw(qx, qy, qz, qw, px, py, pz, pw)
+    rx, ry, rz, rw, ok = normalize_xyzw(rx, ry, rz, rw)
+    if not (ok and abs(nx) + abs(ny) + abs(nz) < np.inf):
         return False  # the caller raises: an exception cannot leave a prange body cleanly
-    rx, ry, rz, rw = rx / rn, ry / rn, rz / rn, rw / rn
-    ox, oy, oz = _rot3(rx, ry, rz, rw, nx, ny, nz)
+    ox, oy, oz = rotate_xyz(rx, ry, rz, rw, nx, ny, nz)
     q_out[0], q_out[1], q_out[2], q_out[3] = rx, ry, rz, rw
     omega_out[0], omega_out[1], omega_out[2] = ox, oy, oz
     return True
@@ -316,10 +247,10 @@ def _advance_into(q, omega_world, inv_inertia_body, dt, q_out, omega_out):
 @njit(cache=True)
 def _check_step_args(inv_inertia, dt):
     if not (abs(dt) < np.inf):
-        raise ValueError("advance_rotation: dt must be a finite number")
+        raise PecletArgumentError("dt", "a finite number", dt)
     for v in inv_inertia.ravel():
         if not (v >= 0.0 and v < np.inf):
-            raise ValueError("advance_rotation: inv_inertia_body entries must be finite and >= 0")
+            raise PecletArgumentError("inv_inertia_body", "entries that are finite and >= 0", v)
 
 
 @njit(cache=True)
@@ -339,15 +270,15 @@ def advance_rotation(q, omega_world, inv_inertia_body, dt):
     below one radian (any sensible DEM step); beyond that Newton's method solves the midpoint
     equation, and where that equation has no real root (seen at dt |omega| ~ 5) the last
     iterate is used: world angular momentum and |L| are then still exact, the energy is not.
-    Raises ValueError for a non-finite dt, a negative or non-finite inverse moment, or a zero
-    / non-finite q or non-finite omega.
+    Raises PecletArgumentError for a non-finite dt, a negative or non-finite inverse moment,
+    or a zero / non-finite q or non-finite omega.
     """
     _check_step_args(inv_inertia_body, dt)
     q_out = np.empty(4)
     omega_out = np.empty(3)
     if not _advance_into(q, omega_world, inv_inertia_body, dt, q_out, omega_out):
-        raise ValueError("advance_rotation: q must be a finite non-zero quaternion (x, y, z, w) "
-                         "and omega_world finite")
+        raise PecletArgumentError("q", "a finite non-zero quaternion (x, y, z, w), with "
+                                  "omega_world finite", (q[0], q[1], q[2], q[3]))
     return q_out, omega_out
 
 
@@ -356,14 +287,15 @@ def advance_rotations(quats, omegas, inv_inertia, dt):
     """In-place :func:`advance_rotation` of N bodies: ``quats`` (N, 4), ``omegas`` (N, 3) world,
     ``inv_inertia`` (N, 3) principal inverse moments. Parallel over bodies; each body writes only
     its own rows, so the result is bitwise identical at any thread count and equal to the
-    scalar function's. Raises ValueError for mismatched shapes, bad dt / inverse moments, or a
-    zero / non-finite quaternion or non-finite omega (naming the first such body; that body is
-    left unchanged, the others are advanced).
+    scalar function's. Raises PecletArgumentError for mismatched shapes, bad dt / inverse
+    moments, or a zero / non-finite quaternion or non-finite omega (naming the first such body
+    as the error's ``value``; that body is left unchanged, the others are advanced).
     """
     n = quats.shape[0]
     if quats.shape[1] != 4 or omegas.shape[0] != n or omegas.shape[1] != 3 \
             or inv_inertia.shape[0] != n or inv_inertia.shape[1] != 3:
-        raise ValueError("advance_rotations: quats must be (N, 4), omegas and inv_inertia (N, 3)")
+        raise PecletArgumentError("quats", "an (N, 4) array, with omegas and inv_inertia (N, 3)",
+                                  n)
     _check_step_args(inv_inertia, dt)
     ok = np.empty(n, dtype=np.bool_)
     for i in prange(n):
@@ -371,134 +303,28 @@ def advance_rotations(quats, omegas, inv_inertia, dt):
     for i in range(n):
         if not ok[i]:
             # Bodies before and after i were advanced; body i is left as it was.
-            raise ValueError("advance_rotations: quats[i] must be a finite non-zero quaternion "
-                             "(x, y, z, w) and omegas[i] finite; first bad body i =", i)
+            raise PecletArgumentError("quats", "rows that are finite non-zero quaternions "
+                                      "(x, y, z, w), with omegas finite", i, "first bad body")
 
 
-# --------------------------------------------------------------------------------------------
-# Diagnostics and reference solutions of the free rotor (verification, not the engine's step)
-# --------------------------------------------------------------------------------------------
+#: Below this many bodies :func:`advance_all` runs serially: a body costs ~0.2 us, and on a
+#: loaded 2-core machine a parallel launch was measured at several milliseconds.
+PARALLEL_ROTATION_MIN = 50000
+
 
 @njit(cache=True)
-def integrate_free_rotor(q, omega_world, inv_inertia_body, dt, n_steps):
-    """Run :func:`advance_rotation` ``n_steps`` times from (q, omega_world).
-
-    Returns ``(quats (n+1, 4), omegas_world (n+1, 3), L_body (n+1, 3))``, row 0 the initial
-    state; ``L_body = I R^T omega`` is the principal-frame angular momentum.
-    """
-    quats = np.empty((n_steps + 1, 4))
-    omegas = np.empty((n_steps + 1, 3))
-    L_body = np.empty((n_steps + 1, 3))
-    quats[0, :] = q
-    omegas[0, :] = omega_world
-    for i in range(n_steps + 1):
-        if i > 0:
-            qn, wn = advance_rotation(quats[i - 1], omegas[i - 1], inv_inertia_body, dt)
-            quats[i, :] = qn
-            omegas[i, :] = wn
-        L_body[i, :] = _body_momentum(quat_rotate_inv(quats[i], omegas[i]), inv_inertia_body)
-    return quats, omegas, L_body
+def _advance_serial(quats, omegas, inv_inertia, dt):
+    for i in range(quats.shape[0]):
+        qn, wn = advance_rotation(quats[i], omegas[i], inv_inertia[i], dt)
+        quats[i, :] = qn
+        omegas[i, :] = wn
 
 
-def free_rotor_period(inv_inertia_body, L_body):
-    """Closed-form period of the body angular momentum of a free asymmetric rotor.
-
-    Landau & Lifshitz, Mechanics §37: with ``I1 < I2 < I3``, ``M^2 = |L|^2`` and
-    ``2E = sum L_i^2 / I_i``, the body components are Jacobi elliptic functions of
-    ``tau = t * rate`` with parameter ``m = k^2`` and period ``4 K(m)`` in tau, where for
-    ``M^2 > 2 E I2`` (orbit round the I3 axis)
-
-        rate^2 = (I3 - I2)(M^2 - 2E I1) / (I1 I2 I3),  m = (I2 - I1)(2E I3 - M^2) / ((I3 - I2)(M^2 - 2E I1))
-
-    and for ``M^2 < 2 E I2`` the roles of I1 and I3 swap. Returns the period ``4 K(m) / rate``
-    in the time unit of the moments. ``inv_inertia_body`` must be three distinct positive
-    values (any order); ``L_body`` the principal-frame angular momentum (same order).
-    Raises ValueError on the separatrix (``M^2 = 2 E I2``, infinite period) or bad moments.
-    """
-    from scipy.special import ellipk
-
-    iinv = np.asarray(inv_inertia_body, dtype=np.float64).reshape(3)
-    L = np.asarray(L_body, dtype=np.float64).reshape(3)
-    if not np.all(np.isfinite(iinv) & (iinv > 0.0)) or len(set(iinv.tolist())) != 3:
-        raise ValueError("free_rotor_period: inv_inertia_body must be 3 distinct finite values > 0")
-    order = np.argsort(1.0 / iinv)
-    I1, I2, I3 = (1.0 / iinv)[order]
-    M2 = float(L @ L)
-    E2 = float(np.sum(L * L * iinv))
-    if M2 > E2 * I2:
-        rate2 = (I3 - I2) * (M2 - E2 * I1) / (I1 * I2 * I3)
-        m = (I2 - I1) * (E2 * I3 - M2) / ((I3 - I2) * (M2 - E2 * I1))
-    elif M2 < E2 * I2:
-        rate2 = (I2 - I1) * (E2 * I3 - M2) / (I1 * I2 * I3)
-        m = (I3 - I2) * (M2 - E2 * I1) / ((I2 - I1) * (E2 * I3 - M2))
+def advance_all(quats, omegas, inv_inertia, dt):
+    """Torque-free rotation of every body in place: :func:`advance_rotations` for many bodies,
+    a serial loop of :func:`advance_rotation` for few. Both run the same per-body kernel, so
+    the choice never changes a bit."""
+    if len(quats) >= PARALLEL_ROTATION_MIN:
+        advance_rotations(quats, omegas, inv_inertia, dt)
     else:
-        raise ValueError("free_rotor_period: L_body lies on the separatrix (M^2 = 2 E I2)")
-    return float(4.0 * ellipk(m) / math.sqrt(rate2))
-
-
-def crossing_times(t, x, dxdt, direction=0):
-    """Times where the sampled signal x(t) crosses zero, from cubic Hermite interpolation.
-
-    ``t`` (n,) increasing sample times, ``x`` and ``dxdt`` (n,) values and exact derivatives.
-    Hermite interpolation is O(h^4) accurate, so the crossing times carry no O(h^2) bias of
-    their own and the second-order error of an integrator is measured cleanly.
-    ``direction`` +1 / -1 keeps only upward / downward crossings, 0 keeps both.
-    """
-    t = np.asarray(t, dtype=np.float64)
-    x = np.asarray(x, dtype=np.float64)
-    d = np.asarray(dxdt, dtype=np.float64)
-    if direction not in (-1, 0, 1):
-        raise ValueError("crossing_times: direction must be -1, 0 or +1")
-    out = []
-    idx = np.nonzero((x[:-1] * x[1:] < 0.0) | ((x[:-1] != 0.0) & (x[1:] == 0.0)))[0]
-    for i in idx:
-        if direction and np.sign(x[i + 1] - x[i]) != direction:
-            continue
-        h = t[i + 1] - t[i]
-        x0, x1, m0, m1 = x[i], x[i + 1], d[i] * h, d[i + 1] * h
-
-        def f(s):
-            return ((2 * s**3 - 3 * s**2 + 1) * x0 + (s**3 - 2 * s**2 + s) * m0
-                    + (-2 * s**3 + 3 * s**2) * x1 + (s**3 - s**2) * m1)
-
-        lo, hi = 0.0, 1.0
-        flo = f(lo)
-        for _ in range(80):  # bisection: robust, and 80 halvings reach round-off
-            mid = 0.5 * (lo + hi)
-            fm = f(mid)
-            if (fm < 0.0) == (flo < 0.0) and fm != 0.0:
-                lo, flo = mid, fm
-            else:
-                hi = mid
-        out.append(t[i] + 0.5 * (lo + hi) * h)
-    return np.array(out)
-
-
-def period_from_crossings(times):
-    """Period from successive same-direction crossing times: least-squares slope of time
-    against crossing index (uses every crossing, not just the first and last)."""
-    times = np.asarray(times, dtype=np.float64)
-    if times.size < 2:
-        raise ValueError("period_from_crossings: need at least 2 crossing times")
-    k = np.arange(times.size, dtype=np.float64)
-    return float(np.polyfit(k, times, 1)[0])
-
-
-def euler_reference_crossings(inv_inertia_body, L_body, t_end, component, direction=1):
-    """Crossing times of ``L_body[component]`` through zero for Euler's equations
-    ``dL/dt = L x (I^-1 L)`` integrated by scipy's DOP853 (rtol = atol = 1e-12) with event
-    location. ``direction`` as in :func:`crossing_times` (+1 upward)."""
-    from scipy.integrate import solve_ivp
-
-    iinv = np.asarray(inv_inertia_body, dtype=np.float64).reshape(3)
-
-    def rhs(_t, L):
-        return np.cross(L, iinv * L)
-
-    def event(_t, L):
-        return L[component]
-
-    event.direction = direction
-    sol = solve_ivp(rhs, (0.0, t_end), np.asarray(L_body, dtype=np.float64), method="DOP853",
-                    rtol=1e-12, atol=1e-12, events=event)
-    return np.asarray(sol.t_events[0])
+        _advance_serial(quats, omegas, inv_inertia, dt)

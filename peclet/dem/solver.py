@@ -24,11 +24,31 @@ never touches the velocities.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from peclet.dem.rigid import quat_multiply, quat_normalize, world_inv_inertia
+from peclet.core.geom.transforms import quat_multiply, quat_normalize
+from peclet.dem.rigid import world_inv_inertia
+
+
+class Constraints(NamedTuple):
+    """The contacts of a step as the solvers see them: bodies ``a``, ``b`` (n,) (b < 0 a
+    wall), unit ``normal``, tangents ``t1``, ``t2`` (n, 3), lever arms ``ra``, ``rb`` (n, 3)
+    (zero for a wall), signed ``gap`` (n,), restitution ``e``, tangential restitution
+    ``beta`` and friction ``mu`` (n,)."""
+    a: np.ndarray
+    b: np.ndarray
+    normal: np.ndarray
+    t1: np.ndarray
+    t2: np.ndarray
+    ra: np.ndarray
+    rb: np.ndarray
+    gap: np.ndarray
+    e: np.ndarray
+    beta: np.ndarray
+    mu: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -105,11 +125,13 @@ def tangent_basis(normal):
 
 
 @njit(cache=True)
-def solve_velocities(ca, cb, normal, t1, t2, ra, rb, gap, e_n, beta, mu, lam,
-                     v, w, inv_mass, invI, dt, rest_threshold, slop, iterations):
-    """Projected Gauss-Seidel in place on ``v``, ``w`` (N, 3) and the accumulated impulses
-    ``lam`` (n, 3) = (lambda_n, lambda_t1, lambda_t2), which enter as the warm start.
+def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, iterations):
+    """Projected Gauss-Seidel over the :class:`Constraints` ``con``, in place on ``v``, ``w``
+    (N, 3) and the accumulated impulses ``lam`` (n, 3) = (lambda_n, lambda_t1, lambda_t2),
+    which enter as the warm start. ``inv_mass`` (N,), ``invI`` (N, 3, 3) world inverse inertia.
     Returns the normal relative velocity of every contact after the solve (n,)."""
+    ca, cb, normal, t1, t2, ra, rb = con.a, con.b, con.normal, con.t1, con.t2, con.ra, con.rb
+    gap, e_n, beta, mu = con.gap, con.e, con.beta, con.mu
     n = ca.shape[0]
     kn = np.empty(n)
     kt1 = np.empty(n)
@@ -192,10 +214,11 @@ def solve_velocities(ca, cb, normal, t1, t2, ra, rb, gap, e_n, beta, mu, lam,
 
 
 @njit(cache=True)
-def project_positions(ca, cb, normal, ra, rb, gap_end, inv_mass, invI, slop, iterations,
-                      pos, quats):
-    """Remove the predicted end-of-step overlaps ``gap_end < 0`` by moving and rotating the
-    bodies (in place on ``pos`` (N, 3) and ``quats`` (N, 4)); velocities are not touched."""
+def project_positions(con, gap_end, inv_mass, invI, slop, iterations, pos, quats):
+    """Remove the predicted end-of-step overlaps ``gap_end < 0`` of the :class:`Constraints`
+    ``con`` by moving and rotating the bodies (in place on ``pos`` (N, 3) and ``quats``
+    (N, 4)); velocities are not touched."""
+    ca, cb, normal, ra, rb = con.a, con.b, con.normal, con.ra, con.rb
     n = ca.shape[0]
     nb = pos.shape[0]
     dx = np.zeros((nb, 3))

@@ -1,4 +1,6 @@
-"""Pack analysis on the exact trees (page Steps 2, 5 and 6).
+"""Pack analysis on the exact trees (page Steps 5 and 6; Step 2's Equation 1 check is
+:func:`peclet.core.geom.certificate.check_equation1`, re-exported here as
+``certificate_check``, and the marching-cubes area is :mod:`peclet.core.geom.mesh`'s).
 
 All measurements are taken on a :class:`~peclet.packing.freeze.Pack` (world frame: y up, floor
 at y = 0, periodic in x and z with sides ``pack.box``), so they are reproducible from the frozen
@@ -21,6 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 from peclet.core.geom import kernels as K
+from peclet.core.geom.certificate import check_equation1 as certificate_check
 from peclet.core.geom.program import concatenate
 
 from .freeze import Pack
@@ -192,8 +195,8 @@ def contacts(geo: PackGeometry, gap=0.0):
     probe of either comes closer than ``gap`` (a length >= 0) to the other's tree: ``gap = 0``
     is the page's strictly-inside test, which suits an engine that lets bodies overlap; an
     engine that removes overlap leaves touching bodies at gaps of the order of its resting slop
-    plus the sag of the probe sampling, and needs ``gap`` of that order. Returns a dict: counts (N,) contacts
-    per body (the page's count over images), z_mean, rattlers (bodies with none), pairs (ordered
+    plus the sag of the probe sampling, and needs ``gap`` of that order. Returns a dict:
+    counts (N,) contacts per body (the page's count over images), z_mean, rattlers (bodies with none), pairs (ordered
     candidate pairs), max_depth (deepest probe of any body inside another, a length) and
     depths (per touching pair).
     """
@@ -265,33 +268,6 @@ def floor_and_box(pack: Pack, y_top=None):
                 all_in_box=bool(inside.all()), n_outside=int((~inside).sum()))
 
 
-def certificate_check(builder, root, n=200_000, seed=11, extent=1.4, tol=1e-12):
-    """Equation 1 tested on exterior probes (page Step 2).
-
-    Points are drawn at radii ``R_ball (1 + U * extent)`` about the root ball's centre in
-    uniformly random directions; the bound requires phi >= |p - c| - R_ball. Returns a dict:
-    min_slack (min of phi minus the bound), violating (fraction), worst_ratio (min of
-    phi / bound over violations, 1 if none) and the ball. A violation is a slack below
-    ``-tol * (1 + R_ball)``: an exact leaf (a sphere) meets the bound with equality, and its
-    last-bit rounding is not a violation.
-    """
-    c, rb, cert = builder.node_bound(root)
-    if not math.isfinite(rb):
-        raise ValueError("root has an unbounded ball (a half-space on the left)")
-    rng = np.random.default_rng(seed)
-    u = rng.normal(size=(n, 3))
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    r = rb * (1.0 + rng.random(n) * extent)
-    p = c + u * r[:, None]
-    lower = r - rb
-    phi = builder.eval_root(root, p)
-    slack = phi - lower
-    viol = slack < -tol * (1.0 + rb)
-    worst = float((phi[viol] / lower[viol]).min()) if viol.any() else 1.0
-    return dict(min_slack=float(slack.min()), violating=float(viol.mean()), worst_ratio=worst,
-                ball_centre=c.tolist(), ball_radius=float(rb), certified=bool(cert))
-
-
 def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
     """eps(t) = 1 - f_env s(t) with s(t) = V_solid(t) / V_env by implicit quadrature.
 
@@ -316,22 +292,3 @@ def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
         rows.append(dict(t=float(t), t_over_d=float(t) / d, s=float(s), s_err=s_err,
                          eps=float(eps), eps_err=float(math.hypot(s * f_env_se, f_env * s_err))))
     return rows
-
-
-def surface_mesh(builder, root, half, n):
-    """Marching-cubes mesh of the zero level set of ``root`` baked on an ``n``^3 lattice over
-    [-half, half]^3. Returns (verts (V, 3), faces (F, 3), area). The area converges to the true
-    surface area as O(h^2) on smooth parts; sharp edges are rounded off at the lattice scale."""
-    from skimage import measure
-
-    if int(n) < 3:
-        raise ValueError(f"n must be an integer >= 3, got {n!r}")
-    n = int(n)
-    h = 2.0 * half / (n - 1)
-    g = builder.bake(root, origin=[-half] * 3, spacing=[h] * 3, dims=[n] * 3)
-    vol = np.ascontiguousarray(g.reshape(n, n, n, order="F"))
-    if not (vol.min() < 0.0 < vol.max()):
-        raise ValueError("the lattice does not straddle the surface: enlarge half")
-    v, f, _, _ = measure.marching_cubes(vol, level=0.0, spacing=(h,) * 3)
-    v = v - half
-    return v, f, float(measure.mesh_surface_area(v, f))

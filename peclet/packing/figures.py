@@ -1,18 +1,26 @@
-"""Figures of the pipeline (matplotlib, Agg backend, PNG), one function per figure.
+"""Figures of the pipeline (matplotlib, PNG), one function per figure.
 
 Every function takes plain arrays, writes ``path`` atomically and returns it. World frame: y up;
 3-D plots show world y as the vertical axis.
+
+No global state is touched: each figure is a :class:`matplotlib.figure.Figure` drawn on its own
+:class:`~matplotlib.backends.backend_agg.FigureCanvasAgg`, never through ``pyplot``, so importing
+or using this module leaves the user's backend (``matplotlib.get_backend()``) and pyplot's
+figure list as they were (a notebook keeps its inline backend).
 """
 from __future__ import annotations
 
 import matplotlib
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the "3d" projection)
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+from peclet.core.files import atomic_write
 
-from .freeze import atomic_write  # noqa: E402
+from .freeze import rotation_matrices, unit_quaternions
 
 __all__ = ["ring_views", "kinetic_energy", "pack_by_height", "orientation_histogram",
            "voidage_sweep", "pour_animation"]
@@ -25,13 +33,23 @@ BANDS = {"metal / plastic 25 mm Pall rings": (0.90, 0.95, "#4c72b0", "#33517d"),
          "ceramic 25 mm Pall rings": (0.74, 0.78, "#c44e52", "#8c3439")}
 
 
+def _figure(figsize):
+    """A Figure on its own Agg canvas (pyplot's registry and backend are not involved)."""
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def _save(fig, path):
     def write(tmp):
         fig.savefig(tmp, format="png")
-    try:
-        return atomic_write(path, write)
-    finally:
-        plt.close(fig)
+    return atomic_write(path, write)
+
+
+def _height_colours(y):
+    """viridis colours of heights ``y`` (N,) scaled to their range."""
+    y = np.asarray(y, float)
+    return matplotlib.colormaps["viridis"](Normalize(y.min(), y.max() + 1e-12)(y))
 
 
 def _shaded(tri, color, light=(0.4, 0.5, 0.75)):
@@ -47,8 +65,8 @@ def _shaded(tri, color, light=(0.4, 0.5, 0.75)):
 
 def ring_views(verts, faces, path, extent=0.6):
     """The element from outside and down the bore (mesh in its authoring frame, axis y)."""
-    with plt.rc_context(_STYLE):
-        fig = plt.figure(figsize=(5.4, 3.0))
+    with matplotlib.rc_context(_STYLE):
+        fig = _figure((5.4, 3.0))
         for k, (elev, azim, ttl) in enumerate([(22, 35, "outside"), (78, 20, "down the bore")]):
             ax = fig.add_subplot(1, 2, k + 1, projection="3d")
             # plot (x, z, y) so that the element axis y is vertical on screen
@@ -69,8 +87,9 @@ def kinetic_energy(t, ke, phases, dt, path):
     :meth:`Protocol.phases`: [(label, first step)])."""
     t = np.asarray(t, float)
     ke = np.asarray(ke, float)
-    with plt.rc_context(_STYLE):
-        fig, ax = plt.subplots(figsize=(6.0, 2.4))
+    with matplotlib.rc_context(_STYLE):
+        fig = _figure((6.0, 2.4))
+        ax = fig.add_subplot(1, 1, 1)
         floor = max(ke[ke > 0].min() if np.any(ke > 0) else 1e-12, 1e-12)
         ax.semilogy(t, np.maximum(ke, floor), color="#4c72b0", lw=1.1)
         top = ke.max() if ke.size else 1.0
@@ -108,10 +127,10 @@ def pack_by_height(positions, rotations, shell, box, path):
     """
     P = np.asarray(positions, float)
     Lx, Lz = box
-    with plt.rc_context(_STYLE):
-        fig = plt.figure(figsize=(4.2, 4.6))
+    with matplotlib.rc_context(_STYLE):
+        fig = _figure((4.2, 4.6))
         ax = fig.add_subplot(1, 1, 1, projection="3d")
-        col = plt.cm.viridis(plt.Normalize(P[:, 1].min(), P[:, 1].max() + 1e-12)(P[:, 1]))
+        col = _height_colours(P[:, 1])
         _draw_probes(ax, rotations, shell, P, col, (Lx, Lz, P[:, 1].max() + 0.6), elev=16,
                      s=1.2, depthshade=True, linewidths=0)
         ax.set_title("frozen pack (surface probes), coloured by height", fontsize=8)
@@ -121,8 +140,9 @@ def pack_by_height(positions, rotations, shell, box, path):
 def orientation_histogram(cos, path, bins=8):
     """Histogram (density) of |cos theta| of the element axes from vertical, with the isotropic
     expectation (uniform density 1)."""
-    with plt.rc_context(_STYLE):
-        fig, ax = plt.subplots(figsize=(3.6, 2.8))
+    with matplotlib.rc_context(_STYLE):
+        fig = _figure((3.6, 2.8))
+        ax = fig.add_subplot(1, 1, 1)
         ax.hist(np.asarray(cos, float), bins=np.linspace(0, 1, bins + 1), density=True,
                 color="#8ea9c4", edgecolor="w")
         ax.axhline(1.0, color="#c44e52", lw=1.4, label="isotropic")
@@ -140,8 +160,9 @@ def voidage_sweep(rows, eps, t_over_d, path):
     a = np.array([r["t_over_d"] for r in rows])
     e = np.array([r["eps"] for r in rows])
     de = np.array([r["eps_err"] for r in rows])
-    with plt.rc_context(_STYLE):
-        fig, ax = plt.subplots(figsize=(5.0, 3.2))
+    with matplotlib.rc_context(_STYLE):
+        fig = _figure((5.0, 3.2))
+        ax = fig.add_subplot(1, 1, 1)
         for lbl, (lo, hi, c, tc) in BANDS.items():
             ax.axhspan(lo, hi, color=c, alpha=0.15)
             ax.text(0.10, 0.5 * (lo + hi), lbl, fontsize=7, color=tc, va="center")
@@ -163,25 +184,22 @@ def pour_animation(frames, times, shell, box, path, n_frames=60, fps=14, probes=
     [(positions (N, 3), quaternions (N, 4) x y z w)], ``times`` their times."""
     from matplotlib import animation
 
-    from .freeze import Pack
-
     if len(frames) == 0:
         raise ValueError("frames must not be empty")
     Lx, Lz = box
     sel = np.linspace(0, len(frames) - 1, min(n_frames, len(frames))).astype(int)
     probe = np.asarray(shell, float)[::max(1, len(shell) // probes)]
     P0 = np.asarray(frames[0][0], float)
-    col = plt.cm.viridis(plt.Normalize(P0[:, 1].min(), P0[:, 1].max() + 1e-12)(P0[:, 1]))
+    col = _height_colours(P0[:, 1])
     ymax = max(float(np.asarray(f[0])[:, 1].max()) for f in frames) + 0.8
-    with plt.rc_context(_STYLE):
-        fig = plt.figure(figsize=(3.4, 4.0))
+    with matplotlib.rc_context(_STYLE):
+        fig = _figure((3.4, 4.0))
         ax = fig.add_subplot(111, projection="3d")
 
         def draw(k):
             ax.clear()
             Pk, Qk = frames[sel[k]]
-            R = Pack(Pk, Qk, box, 0, np.zeros((1, 3), np.int32), np.zeros((1, 16)), 0, 1,
-                     probe, 1, [1, 1, 1]).rotations()
+            R = rotation_matrices(unit_quaternions(Qk, "frames"))
             _draw_probes(ax, R, probe, np.asarray(Pk, float), col, (Lx, Lz, ymax), elev=14,
                          s=0.8, depthshade=False)
             ax.set_title("t = %5.2f" % times[sel[k]], fontsize=8)
@@ -191,7 +209,4 @@ def pour_animation(frames, times, shell, box, path, n_frames=60, fps=14, probes=
 
         def write(tmp):
             anim.save(tmp, writer=animation.PillowWriter(fps=fps))
-        try:
-            return atomic_write(path, write)
-        finally:
-            plt.close(fig)
+        return atomic_write(path, write)

@@ -17,13 +17,16 @@ import time
 
 import numpy as np
 
+from peclet.core.files import atomic_write
+from peclet.core.geom.mesh import surface_mesh
 from peclet.core.geom.transforms import compose, quat_to_matrix
 
 from . import analysis, elements, figures
-from .freeze import Pack, atomic_write, save_pack
-from .pour import Protocol, pour
+from .freeze import Pack, save_pack
+from .pipeline_checks import OUTPUTS, check_run, clear_outputs, set_threads
+from .pour import pour
 
-__all__ = ["run", "PAGE", "results_table", "set_threads"]
+__all__ = ["run", "check_run", "PAGE", "results_table", "set_threads", "OUTPUTS"]
 
 #: The reference page's Results (Step 7 table and the text), for the side-by-side table.
 PAGE = dict(cert_violating=0.0, sign_exact_violating=0.2468, sign_exact_worst=0.7071,
@@ -34,19 +37,6 @@ PAGE = dict(cert_violating=0.0, sign_exact_violating=0.2468, sign_exact_worst=0.
             eps_thin=0.957, eps_thick=0.743, runtime_s=346.0)
 
 SWEEP_T = (0.024, 0.04, 0.06, 0.08, 0.12, 0.16)
-
-
-def set_threads(threads):
-    """``numba.set_num_threads(threads)`` after checking 1 <= threads <= NUMBA_NUM_THREADS."""
-    import numba
-
-    cap = int(numba.config.NUMBA_NUM_THREADS)
-    if isinstance(threads, bool) or not float(threads).is_integer() \
-            or not 1 <= int(threads) <= cap:
-        raise ValueError(f"threads must be an integer in [1, {cap}] "
-                         f"(NUMBA_NUM_THREADS={cap}), got {threads!r}")
-    numba.set_num_threads(int(threads))
-    return int(threads)
 
 
 def _home_transform(builder, root, home_root):
@@ -68,7 +58,7 @@ CONTACT_GAP = 1e-3
 def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
         mc_samples=400_000, quad_n=32, shell_resolution=112, shell_points=1200,
         sweep=SWEEP_T, sweep_n=32, mesh_n=150, progress=True, write_figures=True,
-        animation=False, particle=None, log=print):
+        animation=False, particle=None, log=print, overwrite=False):
     """Run the page end to end; returns the results dict (also written to results.json).
 
     rings: number of rings (>= 1); seed: start-cloud seed; threads: numba threads (None keeps
@@ -80,23 +70,38 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     ``elements.pall_ring()`` — built on a fresh one, whose node indices are deterministic),
     to skip Step 3's build; sweep: wall thicknesses t
     (in D) for Step 6 and sweep_n their quadrature resolution; mesh_n: marching-cubes
-    lattice for the surface area.
+    lattice for the surface area; overwrite: replace the files of an earlier run in ``out``
+    (without it such a directory is refused; with it those files are removed first, so no old
+    figure stays beside new results; other files in ``out`` are never touched).
+
+    Every argument is checked before any work
+    (:func:`~peclet.packing.pipeline_checks.check_run`, which states the rules: ring cap, box
+    size for the element and the count, samples):
+    a bad one raises :class:`~peclet.core.validation.PecletArgumentError` and nothing is
+    written. The domain's height follows from the count (the start cloud's top).
     """
     from scipy.spatial import cKDTree
 
     from peclet.dem import scene_particle
 
-    if isinstance(rings, bool) or not float(rings).is_integer() or rings < 1:
-        raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
-    rings = int(rings)
+    plan = check_run(out=out, rings=rings, seed=seed, threads=threads, steps_scale=steps_scale,
+                     box=box, mc_samples=mc_samples, shell_points=shell_points,
+                     overwrite=overwrite, particle=particle, quad_n=quad_n,
+                     shell_resolution=shell_resolution, sweep=sweep, sweep_n=sweep_n,
+                     mesh_n=mesh_n, progress=progress, write_figures=write_figures,
+                     animation=animation, log=log)
+    rings, seed, box, out = plan.rings, plan.seed, plan.box, plan.out
+    mc_samples, shell_points, steps_scale = plan.mc_samples, plan.shell_points, plan.steps_scale
+    protocol = plan.protocol
     if threads is not None:
-        set_threads(threads)
-    protocol = Protocol().scaled(steps_scale) if steps_scale != 1.0 else Protocol()
+        set_threads(plan.threads)
+    clear_outputs(out, plan.previous)
     os.makedirs(out, exist_ok=True)
     T0 = time.perf_counter()
     timing = {}
-    res = dict(config=dict(rings=rings, seed=seed, threads=threads, steps_scale=steps_scale,
-                           box=box, mc_samples=mc_samples, quad_n=quad_n, sweep_n=sweep_n,
+    res = dict(config=dict(rings=rings, seed=seed, threads=plan.threads,
+                           steps_scale=steps_scale, box=box, y_top=plan.y_top,
+                           mc_samples=mc_samples, quad_n=quad_n, sweep_n=sweep_n,
                            shell_points=shell_points, protocol=protocol.__dict__.copy()))
 
     # ---- Steps 1-2: the ring and its certificate
@@ -133,7 +138,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     axis_home = quat_to_matrix(qq) @ np.array([0.0, 1.0, 0.0])
     d_nn, _ = cKDTree(sp.shell).query(sp.shell, k=2)
     t = time.perf_counter()
-    _, _, area = analysis.surface_mesh(b, root, 0.62, mesh_n)
+    _, _, area = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, mesh_n)
     timing["surface_mesh"] = time.perf_counter() - t
     v_env = ring.envelope_volume
     res["particle"] = dict(
@@ -149,7 +154,8 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
 
     # ---- Step 4: pour
     t = time.perf_counter()
-    pr = pour(sp, n=rings, box=box, seed=seed, protocol=protocol, progress=progress)
+    pr = pour(sp, n=rings, box=box, seed=seed, protocol=protocol, progress=progress,
+              y_top=plan.y_top)
     timing["pour"] = time.perf_counter() - t
     sim = pr.sim
     wall_t = ring.params["thickness"]
@@ -185,7 +191,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     fr = [analysis.cover_fractions(geo, w, mc_samples, seed=k) for k, w in enumerate(windows)]
     con = analysis.contacts(geo, gap=CONTACT_GAP)
     ori = analysis.orientation(pack)
-    box_chk = analysis.floor_and_box(pack, y_top=60.0)
+    box_chk = analysis.floor_and_box(pack, y_top=plan.y_top)
     eps_all = np.array([f["eps"] for f in fr])
     res["pack"] = dict(
         windows=fr, window_scale=wscale, eps=fr[0]["eps"], eps_se=fr[0]["eps_se"],
@@ -211,7 +217,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     # ---- figures
     if write_figures:
         t = time.perf_counter()
-        rv, rf, _ = analysis.surface_mesh(b, root, 0.62, 60)   # display mesh (area: mesh_n)
+        rv, rf, _ = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, 60)  # display (area: mesh_n)
         figs = dict(
             ring=figures.ring_views(rv, rf, os.path.join(out, "ring.png")),
             kinetic_energy=figures.kinetic_energy(pr.t, pr.ke, protocol.phases(), protocol.dt,

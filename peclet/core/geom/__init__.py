@@ -6,10 +6,13 @@
 >>> float(b.eval_root(ball, [[2.0, 0.0, 0.0]])[0])
 1.0
 """
-from .builder import SceneBuilder, as_points, decode, evaluate
+from . import encoding
+from .builder import SceneBuilder, as_points, as_transform, decode, evaluate
+from .certificate import check_equation1, equation1_slack, equation1_violations
 from .leaves import (DIFFERENCE, INTERSECTION, LEAF_NAMES, LEAVES_BY_KIND, LEAVES_BY_NAME,
                      UNION, LeafSpec, leaf_spec)
 from .quadrature import BodyProperties, body_properties, principal_frame
+from .mesh import surface_mesh
 from .shell import count_for_spacing, even_spacing, shell_probes
 from .transforms import matrix_to_quat, quat_multiply, quat_to_matrix
 
@@ -17,4 +20,5 @@ __all__ = ["SceneBuilder", "decode", "evaluate", "as_points", "LEAF_NAMES", "LEA
            "LEAVES_BY_NAME", "LeafSpec", "leaf_spec", "UNION", "INTERSECTION", "DIFFERENCE",
            "quat_to_matrix", "matrix_to_quat", "quat_multiply", "BodyProperties",
            "body_properties", "principal_frame", "shell_probes", "count_for_spacing",
-           "even_spacing"]
+           "even_spacing", "surface_mesh", "as_transform", "encoding", "check_equation1",
+           "equation1_slack", "equation1_violations"]

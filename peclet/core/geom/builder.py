@@ -4,9 +4,11 @@ Conventions (DESIGN.md §2)
 --------------------------
 - phi < 0 inside the solid, > 0 outside; gradients point outward. Lengths are in the user's unit.
 - A node's value in its parent frame is ``s * f(R^T (p - t) / s)`` for its transform
-  ``(t, q, s)``: translation t, unit quaternion q = (x, y, z, w) (active rotation), isotropic
-  scale s > 0. A non-unit quaternion is normalised (one within 1e-14 of unit is kept bit for bit);
-  a zero one is an error.
+  ``(t, q, s)``: translation t (3 finite numbers), unit quaternion q = (x, y, z, w) (active
+  rotation; 4 finite numbers, a non-unit one is normalised, one within 1e-14 of unit is kept bit
+  for bit, a zero one is an error), isotropic scale s > 0 (a finite number).
+- Every public method checks its arguments first (:mod:`peclet.core.validation`): a bad one
+  raises :class:`~peclet.core.validation.PecletArgumentError` (a ``ValueError``) naming it.
 - union = min, intersection = max, difference(a, b) = max(a, -b); on a tie the LEFT child wins
   (its value and gradient are returned).
 - Nodes are append-only and immutable: an index, once returned, always means the same subtree.
@@ -17,28 +19,63 @@ import math
 
 import numpy as np
 
+from peclet.core.validation import PecletArgumentError, check_array, check_choice, check_float
+
 from . import kernels as K
 from .bounds import combine
-from .leaves import (DIFFERENCE, INTERSECTION, LEAVES_BY_KIND, MAX_PARAMS, OPERATOR_NAMES,
-                     UNION, leaf_spec)
+from .encoding import (INST_INT_COLS, INST_REAL_COLS, INST_ROOT, INST_ROTATION, INST_SCALE,
+                       INST_TRANSLATION, NODE_INT_COLS, NODE_REAL_COLS, PARAMS, ROTATION, SCALE,
+                       TRANSLATION, instance_transform, node_transform)
+from .leaves import (DIFFERENCE, INTERSECTION, LEAF_NAMES, LEAVES_BY_KIND, MAX_PARAMS,
+                     OPERATOR_NAMES, UNION, leaf_spec)
 from .program import Program, compile_root
-from .transforms import as_quaternion, as_scale, as_translation, compose, transform_ball
+from .transforms import as_quaternion, compose, transform_ball
 
-NODE_INT_COLS = 3
-NODE_REAL_COLS = 16
-INST_INT_COLS = 2
-INST_REAL_COLS = 8
+#: Most lattice points one bake may hold (1024^3 values are 8 GiB already).
+MAX_BAKE_POINTS = 1024 ** 3
 
 
 def as_points(points, name="points") -> np.ndarray:
-    """Validate ``points`` as a finite (N, 3) float64 C-contiguous array."""
-    arr = np.asarray(points, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (N, 3), got {arr.shape}")
+    """``points`` as a finite (N, 3) float64 C-contiguous array, else a PecletArgumentError."""
+    arr = check_array(name, points, (None, 3), finite=False)
     if not np.all(np.isfinite(arr)):
         bad = int(np.argwhere(~np.isfinite(arr).all(axis=1))[0, 0])
-        raise ValueError(f"{name} must be finite; row {bad} is {arr[bad].tolist()}")
-    return np.ascontiguousarray(arr)
+        raise PecletArgumentError(name, "an array of shape (N, 3) of finite numbers", points,
+                                  f"row {bad} is {arr[bad].tolist()}")
+    return arr
+
+
+def as_transform(translation=None, rotation=None, scale=None):
+    """(t (3,), q (4,), s) from a node's or instance's transform arguments; None is identity.
+
+    translation: 3 finite numbers; rotation: a quaternion (x, y, z, w) of 4 finite numbers, not
+    all zero, normalised to unit length; scale: a finite number > 0.
+    """
+    t = np.zeros(3) if translation is None else check_array("translation", translation, (3,))
+    # any finite non-zero magnitude normalises (as_quaternion scales before squaring)
+    q = None if rotation is None else check_array("rotation", rotation, (4,))
+    q = as_quaternion(q, "rotation")
+    s = 1.0 if scale is None else check_float("scale", scale, 0.0, math.inf, lo_open=True)
+    return t, q, s
+
+
+def leaf_params(kind, params, name="params"):
+    """(LeafSpec, params as float64 (n,)) for a leaf of ``kind``, checked against the table."""
+    try:
+        spec = leaf_spec(kind)
+    except ValueError:
+        raise PecletArgumentError("kind", f"one of {list(LEAF_NAMES)} or their ids "
+                                  f"{sorted(LEAVES_BY_KIND)}", kind) from None
+    names = ", ".join(spec.param_names)
+    arr = check_array(name, params, (None,))
+    if arr.size != spec.n_params:
+        raise PecletArgumentError(name, f"{spec.n_params} number{'s' * (spec.n_params > 1)} "
+                                  f"({names}) for a {spec.name}", params)
+    try:
+        return spec, spec.validate(arr)
+    except ValueError as e:
+        raise PecletArgumentError(name, f"valid {spec.name} parameters ({names})", params,
+                                  str(e)) from None
 
 
 class SceneBuilder:
@@ -67,11 +104,11 @@ class SceneBuilder:
     def add_leaf(self, kind, params, translation=None, rotation=None, scale=None) -> int:
         """Add a primitive of ``kind`` (name or id, see :data:`LEAF_NAMES`) with ``params``.
 
-        ``params`` must have exactly the leaf's parameter count (see the leaf table); each
-        radius/extent must be > 0. Returns the node index.
+        ``params`` must be a 1-D sequence of exactly the leaf's parameter count of finite
+        numbers (see the leaf table), each in the leaf's range (radii/extents > 0, ...).
+        ``translation``/``rotation``/``scale``: see :func:`as_transform`. Returns the node index.
         """
-        spec = leaf_spec(kind)
-        prm = spec.validate(params)
+        spec, prm = leaf_params(kind, params)
         return self._append(spec.kind, -1, -1, prm, translation, rotation, scale)
 
     def add_union(self, a, b, translation=None, rotation=None, scale=None) -> int:
@@ -96,9 +133,9 @@ class SceneBuilder:
         node = self._check_index(node, "node")
         kind, left, right = self._ints[node]
         rec = self._reals[node]
-        outer = (as_translation(translation), as_quaternion(rotation), as_scale(scale))
-        t, q, s = compose(outer, (rec[8:11], rec[11:15], float(rec[15])))
-        return self._append(kind, left, right, rec[:8].copy(), t, q, s)
+        outer = as_transform(translation, rotation, scale)
+        t, q, s = compose(outer, node_transform(rec))
+        return self._append(kind, left, right, rec[PARAMS].copy(), t, q, s)
 
     def num_nodes(self) -> int:
         """Number of nodes in the table."""
@@ -110,18 +147,14 @@ class SceneBuilder:
         return self._append(op, a, b, np.zeros(MAX_PARAMS), translation, rotation, scale)
 
     def _check_index(self, idx, name) -> int:
-        if isinstance(idx, bool) or not isinstance(idx, (int, np.integer)):
-            raise ValueError(f"{name} must be a node index (int), got {idx!r}")
-        idx = int(idx)
-        if not 0 <= idx < len(self._ints):
-            raise ValueError(f"{name} must be an existing node index in [0, {len(self._ints)}), "
-                             f"got {idx}")
-        return idx
+        n = len(self._ints)
+        if isinstance(idx, (bool, np.bool_)) or not isinstance(idx, (int, np.integer)) \
+                or not 0 <= idx < n:
+            raise PecletArgumentError(name, f"an existing node index (an int in [0, {n}))", idx)
+        return int(idx)
 
     def _append(self, kind, left, right, params, translation, rotation, scale) -> int:
-        t = as_translation(translation)
-        q = as_quaternion(rotation)
-        s = as_scale(scale)
+        t, q, s = as_transform(translation, rotation, scale)
         if left < 0:
             spec = LEAVES_BY_KIND[kind]
             c = np.zeros(3)
@@ -134,17 +167,17 @@ class SceneBuilder:
             c, r, cert, lip = combine(kind, ball_l, ball_r)
             need = max(self._need[left], self._need[right] + 1)
             if need > K.MAX_STACK:
-                raise ValueError(
-                    f"tree too deep: evaluating this {OPERATOR_NAMES[kind]} needs {need} stack "
-                    f"slots, the evaluator has {K.MAX_STACK}; build long chains left-deep "
-                    "(add_union(chain, leaf)) or balanced")
+                raise PecletArgumentError(
+                    "b", f"a subtree shallow enough for the evaluator's {K.MAX_STACK} stack "
+                    "slots", right, f"tree too deep: evaluating this {OPERATOR_NAMES[kind]} "
+                    f"needs {need} stack slots; build long chains left-deep (add_union(chain, "
+                    "leaf)) or balanced")
         c, r = transform_ball(c, r, t, q, s)
         rec = np.zeros(NODE_REAL_COLS)
-        rec[:MAX_PARAMS] = 0.0
         rec[:len(params)] = params[:MAX_PARAMS]
-        rec[8:11] = t
-        rec[11:15] = q
-        rec[15] = s
+        rec[TRANSLATION] = t
+        rec[ROTATION] = q
+        rec[SCALE] = s
         self._ints.append((int(kind), int(left), int(right)))
         self._reals.append(rec)
         self._ball_c.append(np.asarray(c, dtype=np.float64))
@@ -174,7 +207,8 @@ class SceneBuilder:
         index = self._check_index(index, "index")
         rec = self._reals[index]
         kind, left, right = self._ints[index]
-        return kind, left, right, rec[:8].copy(), rec[8:11].copy(), rec[11:15].copy(), rec[15]
+        return (kind, left, right, rec[PARAMS].copy(), rec[TRANSLATION].copy(),
+                rec[ROTATION].copy(), rec[SCALE])
 
     def program(self, root) -> Program:
         """The flat evaluation program of ``root`` (cached; nodes are immutable)."""
@@ -218,23 +252,24 @@ class SceneBuilder:
         marching cubes gives the same mesh as on the exact bake, for far fewer evaluations.
         """
         prog = self.program(root)
-        o = as_translation(origin, "origin")
-        sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
-        if sp.size != 3 or not np.all(np.isfinite(sp)) or not np.all(sp > 0):
-            raise ValueError(f"spacing must be 3 finite numbers > 0, got {spacing!r}")
-        d = np.asarray(dims).reshape(-1)
-        if d.size != 3 or not all(float(v).is_integer() and v >= 1 for v in d):
-            raise ValueError(f"dims must be 3 integers >= 1, got {dims!r}")
+        o = check_array("origin", origin, (3,))
+        sp = check_array("spacing", spacing, (3,))
+        if not np.all(sp > 0.0):
+            raise PecletArgumentError("spacing", "3 finite numbers > 0", spacing)
+        d = check_array("dims", dims, (3,))
+        if not all(v.is_integer() and v >= 1 for v in d.tolist()) \
+                or math.prod(d.tolist()) > MAX_BAKE_POINTS:
+            raise PecletArgumentError("dims", f"3 integers >= 1 with a product <= "
+                                      f"{MAX_BAKE_POINTS} (1024^3)", dims)
         d = d.astype(np.int64)
         if band is None:
             band = -1.0
         else:
-            band = float(band)
-            if not (math.isfinite(band) and band >= 0.0):
-                raise ValueError(f"band must be a finite number >= 0 (or None), got {band!r}")
+            band = check_float("band", band, 0.0)
             if not self.is_lipschitz(root):
-                raise ValueError("band needs a 1-Lipschitz root (every leaf distance-exact or "
-                                 "a Lipschitz bound); this tree is not: bake without band")
+                raise PecletArgumentError("band", "None for a root that is not 1-Lipschitz "
+                                          "(a leaf neither distance-exact nor a Lipschitz "
+                                          "bound): bake without band", band)
         out = np.empty(int(np.prod(d)))
         K.bake_lattice(prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end,
                        o, sp, d, band, out)
@@ -258,9 +293,8 @@ class SceneBuilder:
         """Place the tree at ``root`` in the scene with a transform; returns the instance index."""
         root = self._check_index(root, "root")
         rec = np.zeros(INST_REAL_COLS)
-        rec[0:3] = as_translation(translation)
-        rec[3:7] = as_quaternion(rotation)
-        rec[7] = as_scale(scale)
+        rec[INST_TRANSLATION], rec[INST_ROTATION], rec[INST_SCALE] = as_transform(
+            translation, rotation, scale)
         self._inst_roots.append(root)
         self._inst_reals.append(rec)
         self._scene_cache = None
@@ -279,10 +313,14 @@ class SceneBuilder:
         instances whose ball proves they cannot be the minimum; uncertified instances ride an
         always list. ``method="brute"`` evaluates every image; both return the same bits.
         """
-        from .scene import Scene
-        if self._scene_cache is None or self._scene_cache[0] != (box_key(box), tuple(periodic)):
-            scene = Scene.from_builder(self, box=box, periodic=periodic)
-            self._scene_cache = ((box_key(box), tuple(periodic)), scene)
+        from .scene import Scene, as_box, as_periodic
+        box = as_box(box)
+        periodic = as_periodic(periodic)
+        check_choice("method", method, ("pruned", "brute"))
+        key = (None if box is None else (tuple(box[0].tolist()), tuple(box[1].tolist())),
+               periodic)
+        if self._scene_cache is None or self._scene_cache[0] != key:
+            self._scene_cache = (key, Scene.from_builder(self, box=box, periodic=periodic))
         return self._scene_cache[1].evaluate(points, method=method)
 
     # ------------------------------------------------------------------ encoding
@@ -301,7 +339,7 @@ class SceneBuilder:
         """
         ni, nr = self._node_arrays()
         ii = np.zeros((len(self._inst_roots), INST_INT_COLS), dtype=np.int32)
-        ii[:, 0] = self._inst_roots
+        ii[:, INST_ROOT] = self._inst_roots
         ir = np.array(self._inst_reals, dtype=np.float64).reshape(-1, INST_REAL_COLS)
         return ni, nr, ii, ir
 
@@ -312,46 +350,53 @@ class SceneBuilder:
         Children must precede their parents (as :meth:`encode` writes them). Leaf parameter
         slots beyond a kind's count are ignored. float32 input is accepted and widened.
         """
-        ni = np.asarray(node_ints)
-        nr = np.asarray(node_reals, dtype=np.float64)
-        if ni.ndim != 2 or ni.shape[1] != NODE_INT_COLS:
-            raise ValueError(f"node_ints must have shape (n, 3), got {ni.shape}")
-        if nr.shape != (len(ni), NODE_REAL_COLS):
-            raise ValueError(f"node_reals must have shape ({len(ni)}, 16), got {nr.shape}")
-        if not np.all(np.isfinite(nr)):
-            raise ValueError("node_reals must be finite")
+        ni = _index_table("node_ints", node_ints, NODE_INT_COLS)
+        nr = check_array("node_reals", node_reals, (len(ni), NODE_REAL_COLS))
         b = cls()
-        for i, (kind, left, right) in enumerate(ni.astype(np.int64)):
-            rec = nr[i]
-            t, q, s = rec[8:11], rec[11:15], rec[15]
-            if kind in OPERATOR_NAMES:
-                for nm, c in (("left", left), ("right", right)):
-                    if not 0 <= c < i:
-                        raise ValueError(f"node {i}: {nm} child must be in [0, {i}), got {c}")
-                b._append(int(kind), int(left), int(right), np.zeros(MAX_PARAMS), t, q, s)
-            else:
-                spec = leaf_spec(int(kind))
-                if left != -1 or right != -1:
-                    raise ValueError(f"node {i}: a leaf ({spec.name}) must have children -1, "
-                                     f"got ({left}, {right})")
-                prm = spec.validate(rec[:spec.n_params])
-                b._append(spec.kind, -1, -1, prm, t, q, s)
+        for i, (kind, left, right) in enumerate(ni.tolist()):
+            try:
+                if kind in OPERATOR_NAMES:
+                    for nm, c in (("left", left), ("right", right)):
+                        if not 0 <= c < i:
+                            raise PecletArgumentError(nm, f"a child index in [0, {i}) (children "
+                                                      "precede their parents)", c)
+                    b._append(kind, left, right, np.zeros(MAX_PARAMS), *node_transform(nr[i]))
+                else:
+                    if left != -1 or right != -1:
+                        raise PecletArgumentError("left", "-1 (and right -1) for a leaf",
+                                                  (left, right))
+                    # slots beyond the kind's count are padding (an unknown kind fails on kind)
+                    n = LEAVES_BY_KIND[kind].n_params if kind in LEAVES_BY_KIND else MAX_PARAMS
+                    spec, prm = leaf_params(kind, nr[i, :n])
+                    b._append(spec.kind, -1, -1, prm, *node_transform(nr[i]))
+            except PecletArgumentError as e:
+                table = "node_ints" if e.argument in ("kind", "left", "right") else "node_reals"
+                row = (ni if table == "node_ints" else nr)[i].tolist()
+                raise PecletArgumentError(f"{table}[{i}]", "a valid node record", row,
+                                          str(e)) from None
+        if (inst_ints is None) != (inst_reals is None):
+            raise PecletArgumentError("inst_reals" if inst_reals is None else "inst_ints",
+                                      "given together with the other instance table (or both "
+                                      "None)", None)
         if inst_ints is not None:
-            ii = np.asarray(inst_ints).reshape(-1, INST_INT_COLS)
-            ir = np.asarray(inst_reals, dtype=np.float64).reshape(-1, INST_REAL_COLS)
-            if len(ii) != len(ir):
-                raise ValueError(f"inst_ints and inst_reals must have the same number of rows, "
-                                 f"got {len(ii)} and {len(ir)}")
-            for root, rec in zip(ii[:, 0], ir):
-                b.add_instance(int(root), rec[0:3], rec[3:7], rec[7])
+            ii = _index_table("inst_ints", inst_ints, INST_INT_COLS)
+            ir = check_array("inst_reals", inst_reals, (len(ii), INST_REAL_COLS))
+            for k in range(len(ii)):
+                try:
+                    b.add_instance(int(ii[k, INST_ROOT]), *instance_transform(ir[k]))
+                except PecletArgumentError as e:
+                    table, rows = ("inst_ints", ii) if e.argument == "root" else ("inst_reals", ir)
+                    raise PecletArgumentError(f"{table}[{k}]", "a valid instance record",
+                                              rows[k].tolist(), str(e)) from None
         return b
 
 
-def box_key(box):
-    if box is None:
-        return None
-    lo, hi = box
-    return tuple(np.asarray(lo, float).tolist()), tuple(np.asarray(hi, float).tolist())
+def _index_table(name, value, cols):
+    """An integer table (n, cols) as int64; integral floats pass, anything else is an error."""
+    arr = check_array(name, value, (None, cols))
+    if not np.all(arr == np.round(arr)) or np.any(np.abs(arr) > 2 ** 31):
+        raise PecletArgumentError(name, f"an array of shape (N, {cols}) of integers", value)
+    return arr.astype(np.int64)
 
 
 def decode(node_ints, node_reals, inst_ints=None, inst_reals=None) -> SceneBuilder:
@@ -361,4 +406,4 @@ def decode(node_ints, node_reals, inst_ints=None, inst_reals=None) -> SceneBuild
 
 def evaluate(node_ints, node_reals, root, points) -> np.ndarray:
     """phi of ``root`` of a flat encoding at ``points`` — the backend protocol's reference."""
-    return SceneBuilder.decode(node_ints, node_reals).eval_root(int(root), points)
+    return SceneBuilder.decode(node_ints, node_reals).eval_root(root, points)

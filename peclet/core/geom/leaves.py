@@ -5,6 +5,10 @@ exactly one place, :mod:`peclet.core.geom.kernels`; this module holds what Pytho
 about it: kind id, parameter names, validation, exactness and Lipschitz flags, and the radius of
 a ball about the origin that contains the solid.
 
+Each row with a closed form also carries the leaf's mass properties at unit density
+(:func:`closed_form_mass_properties`): the one home of those formulas for the tests, the
+benchmarks and the certificate.
+
 Flags
 -----
 exact
@@ -17,8 +21,9 @@ lipschitz
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple, Optional
 
 import numpy as np
 
@@ -55,6 +60,8 @@ class LeafSpec:
     doc: str
     check: Callable[[np.ndarray], np.ndarray]
     radius: Callable[[np.ndarray], float]
+    #: Validated params -> :class:`ClosedForm`, or None where the leaf has no closed form.
+    mass_properties: Optional[Callable[[np.ndarray], "ClosedForm"]] = None
 
     @property
     def n_params(self) -> int:
@@ -152,29 +159,122 @@ def _check_half_space(a):
     return out
 
 
+class ClosedForm(NamedTuple):
+    """Exact mass properties of a leaf at unit density, in its canonical frame.
+
+    volume (user units^3); com (3,), the centre of mass; inertia (3, 3), the inertia tensor
+    about the com, ``integral of (r^2 I - r r^T) dV`` with r measured from the com.
+    """
+
+    volume: float
+    com: np.ndarray
+    inertia: np.ndarray
+
+
+def _closed_form(volume, diag, com_y=0.0):
+    """A ClosedForm with a diagonal inertia (the canonical axes are principal)."""
+    return ClosedForm(float(volume), np.array([0.0, com_y, 0.0]), np.diag(np.asarray(diag, float)))
+
+
+def _mp_sphere(a):
+    r = a[0]
+    v = 4.0 / 3.0 * math.pi * r ** 3
+    return _closed_form(v, [0.4 * v * r * r] * 3)
+
+
+def _mp_box(a):
+    x2, y2, z2 = a[0] ** 2, a[1] ** 2, a[2] ** 2
+    v = 8.0 * a[0] * a[1] * a[2]
+    return _closed_form(v, [v * (y2 + z2) / 3.0, v * (x2 + z2) / 3.0, v * (x2 + y2) / 3.0])
+
+
+def _mp_ellipsoid(a):
+    x2, y2, z2 = a[0] ** 2, a[1] ** 2, a[2] ** 2
+    v = 4.0 / 3.0 * math.pi * a[0] * a[1] * a[2]
+    return _closed_form(v, [v * (y2 + z2) / 5.0, v * (x2 + z2) / 5.0, v * (x2 + y2) / 5.0])
+
+
+def _tube(ro, ri, h):
+    """(volume, axial moment, transverse moment) of a tube of radii ri < ro, length h."""
+    v = math.pi * (ro * ro - ri * ri) * h
+    s = ro * ro + ri * ri
+    return v, 0.5 * v * s, v * (0.25 * s + h * h / 12.0)
+
+
+def _mp_hollow_cylinder(a):
+    v, axial, transverse = _tube(a[0], a[0] - a[2], a[1])          # axis y
+    return _closed_form(v, [transverse, axial, transverse])
+
+
+def _mp_hollow_cylinder_shell(a):
+    v, axial, transverse = _tube(a[0], a[1], a[2])                 # axis z
+    return _closed_form(v, [transverse, transverse, axial])
+
+
+def _mp_torus(a):
+    R, r = a[0], a[1]
+    v = 2.0 * math.pi ** 2 * R * r * r
+    transverse = v * (0.5 * R * R + 0.625 * r * r)
+    return _closed_form(v, [transverse, v * (R * R + 0.75 * r * r), transverse])
+
+
+def _mp_capsule(a):
+    """A cylinder of length 2L about y with a hemisphere on each end. A hemisphere of mass m
+    has 2/5 m r^2 about any axis through its base's centre and its com 3r/8 from the base, so
+    about a transverse axis through the capsule's centre (base at L) it has
+    2/5 m r^2 + m (L^2 + 2 L 3r/8)."""
+    r, L = a[0], a[1]
+    vc = 2.0 * math.pi * r * r * L
+    vh = 2.0 / 3.0 * math.pi * r ** 3
+    axial = 0.5 * vc * r * r + 2.0 * vh * 0.4 * r * r
+    transverse = vc * (0.25 * r * r + L * L / 3.0) + 2.0 * vh * (0.4 * r * r + L * L + 0.75 * L * r)
+    return _closed_form(vc + 2.0 * vh, [transverse, axial, transverse])
+
+
+def _mp_cone(a):
+    """Frustum about y, radius rho(s) = r1 + (r2 - r1) s / H at height s = y + h in [0, H],
+    H = 2h. With p = r1^2 + r1 r2 + r2^2, the integrals of rho^2, s rho^2, s^2 rho^2 and
+    rho^4 over [0, H] are H p / 3, H^2 (r1^2 + 2 r1 r2 + 3 r2^2) / 12,
+    H^3 (r1^2 + 3 r1 r2 + 6 r2^2) / 30 and H (r1^4 + r1^3 r2 + ... + r2^4) / 5. A disc of
+    radius rho has pi rho^4 / 2 about the axis and pi rho^4 / 4 about a diameter; the com is
+    NOT at the origin (unless r1 = r2)."""
+    r1, r2, h = a[0], a[1], a[2]
+    H = 2.0 * h
+    p = r1 * r1 + r1 * r2 + r2 * r2
+    v = math.pi * H * p / 3.0
+    sc = H * (r1 * r1 + 2.0 * r1 * r2 + 3.0 * r2 * r2) / (4.0 * p)        # com above the base
+    q4 = H * (r1 ** 4 + r1 ** 3 * r2 + r1 * r1 * r2 * r2 + r1 * r2 ** 3 + r2 ** 4) / 5.0
+    axial = 0.5 * math.pi * q4
+    s2 = math.pi * H ** 3 * (r1 * r1 + 3.0 * r1 * r2 + 6.0 * r2 * r2) / 30.0 - v * sc * sc
+    transverse = 0.25 * math.pi * q4 + s2
+    return _closed_form(v, [transverse, axial, transverse], com_y=sc - h)
+
+
 _LEAVES = (
     LeafSpec(1, "sphere", ("radius",), True, True,
-             "|p| - r", _check_sphere, lambda a: a[0]),
+             "|p| - r", _check_sphere, lambda a: a[0], _mp_sphere),
     LeafSpec(2, "hollow_cylinder", ("rOuter", "height", "thickness"), True, True,
              "tube about y: 2-D box in (r_xz, y)", _check_hollow_cylinder,
-             lambda a: float(np.hypot(a[0], 0.5 * a[1]))),
+             lambda a: float(np.hypot(a[0], 0.5 * a[1])), _mp_hollow_cylinder),
     LeafSpec(3, "box", ("hx", "hy", "hz"), True, True,
              "box of half-extents (hx, hy, hz)", _check_box,
-             lambda a: float(np.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2))),
+             lambda a: float(np.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)), _mp_box),
     LeafSpec(4, "hollow_cylinder_shell", ("rOuter", "rInner", "height"), False, True,
              "tube about z: max(r_xy - rO, rI - r_xy, |z| - H/2); sign-exact, under-estimates",
-             _check_hollow_cylinder_shell, lambda a: float(np.hypot(a[0], 0.5 * a[2]))),
+             _check_hollow_cylinder_shell, lambda a: float(np.hypot(a[0], 0.5 * a[2])),
+             _mp_hollow_cylinder_shell),
     LeafSpec(5, "capsule", ("radius", "halfLength"), True, True,
              "segment [-L, L] on y, thickened by radius", _check_capsule,
-             lambda a: a[0] + a[1]),
+             lambda a: a[0] + a[1], _mp_capsule),
     LeafSpec(6, "torus", ("R", "r"), True, True,
-             "torus about y: |(r_xz - R, y)| - r", _check_torus, lambda a: a[0] + a[1]),
+             "torus about y: |(r_xz - R, y)| - r", _check_torus, lambda a: a[0] + a[1],
+             _mp_torus),
     LeafSpec(7, "cone", ("rBottom", "rTop", "halfHeight"), True, True,
              "capped cone (frustum) about y, rBottom at y=-h, rTop at y=+h", _check_cone,
-             lambda a: float(max(np.hypot(a[0], a[2]), np.hypot(a[1], a[2])))),
+             lambda a: float(max(np.hypot(a[0], a[2]), np.hypot(a[1], a[2]))), _mp_cone),
     LeafSpec(8, "ellipsoid", ("rx", "ry", "rz"), False, False,
              "k0 (k0 - 1) / k1 with k0 = |p/r|, k1 = |p/r^2|; a bound, not 1-Lipschitz",
-             _check_ellipsoid, lambda a: float(max(a[0], a[1], a[2]))),
+             _check_ellipsoid, lambda a: float(max(a[0], a[1], a[2])), _mp_ellipsoid),
     LeafSpec(9, "superquadric", ("rx", "ry", "rz", "e"), False, False,
              "Taubin estimate (F - 1)/|grad F| of F = ||p/r||_(2/e), clamped at -min(r)",
              _check_superquadric, lambda a: float(np.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2))),
@@ -200,3 +300,16 @@ def leaf_spec(kind) -> LeafSpec:
         raise ValueError(f"kind must be one of {list(LEAF_NAMES)} or their ids "
                          f"{sorted(LEAVES_BY_KIND)}, got {kind!r}")
     return spec
+
+
+def closed_form_mass_properties(kind, params) -> Optional[ClosedForm]:
+    """Exact mass properties of leaf ``kind`` (name or id) with ``params``, at unit density in
+    its canonical frame (see the table's axis conventions: tubes, torus, capsule and cone
+    about y, hollow_cylinder_shell about z): a :class:`ClosedForm` (volume, com (3,), inertia
+    (3, 3) about the com), or None for a leaf without one (superquadric, half_space). The
+    params are validated like the builder's; a bad kind or param raises ``ValueError``."""
+    spec = leaf_spec(kind)
+    a = spec.validate(params)
+    if spec.mass_properties is None:
+        return None
+    return spec.mass_properties(a)

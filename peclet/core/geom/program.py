@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels as K
+from .encoding import PARAMS, node_transform
 from .transforms import quat_to_matrix
 
 
@@ -39,9 +40,7 @@ def compile_root(node_ints: np.ndarray, node_reals: np.ndarray, root: int) -> Pr
             ops.append((kind, -1))
             continue
         rec = node_reals[node]
-        t = rec[8:11]
-        q = rec[11:15]
-        s = float(rec[15])
+        t, q, s = node_transform(rec)
         Rn = quat_to_matrix(q)
         # world-from-node: p_world = S R (s Rn p + t) + T
         # with an identity rotation or a zero translation these products are exact
@@ -50,7 +49,7 @@ def compile_root(node_ints: np.ndarray, node_reals: np.ndarray, root: int) -> Pr
         S2 = S * s
         if left < 0:
             row = np.zeros(K.LEAF_COLS)
-            row[:8] = rec[:8]
+            row[PARAMS] = rec[PARAMS]
             row[K.LEAF_T:K.LEAF_T + 3] = T2
             row[K.LEAF_R:K.LEAF_R + 9] = R2.reshape(-1)
             row[K.LEAF_S] = S2

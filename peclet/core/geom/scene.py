@@ -15,8 +15,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from peclet.core.validation import PecletArgumentError, check_array, check_bool, check_choice
+
 from . import kernels as K
 from .builder import as_points
+from .encoding import INST_ROOT, instance_transform
 from .program import concatenate
 from .transforms import quat_to_matrix, transform_ball
 
@@ -165,6 +168,27 @@ def _build_bvh(centres, radii, ids):
             np.asarray(child, np.int64))
 
 
+def as_box(box):
+    """``box`` as (lo (3,), hi (3,)) float64 with finite lo < hi, or None."""
+    if box is None:
+        return None
+    if isinstance(box, (str, bytes)) or not hasattr(box, "__len__") or len(box) != 2:
+        raise PecletArgumentError("box", "(lo, hi), two points of 3 finite numbers", box)
+    lo = check_array("box lo", box[0], (3,))
+    hi = check_array("box hi", box[1], (3,))
+    if not np.all(hi > lo):
+        raise PecletArgumentError("box", "(lo, hi) with hi > lo on every axis", box)
+    return lo, hi
+
+
+def as_periodic(periodic):
+    """``periodic`` as a tuple of 3 bools (exactly bools: the string "False" is an error)."""
+    if isinstance(periodic, (str, bytes)) or not hasattr(periodic, "__len__") \
+            or len(periodic) != 3:
+        raise PecletArgumentError("periodic", "3 flags (bools), one per axis", periodic)
+    return tuple(check_bool(f"periodic[{a}]", p) for a, p in enumerate(periodic))
+
+
 class Scene:
     """Instances of one builder, flattened for the query kernels."""
 
@@ -206,25 +230,18 @@ class Scene:
         n = builder.num_instances()
         if n == 0:
             raise ValueError("the scene has no instances: call add_instance first")
-        per = tuple(bool(p) for p in periodic)
-        if len(per) != 3:
-            raise ValueError(f"periodic must be 3 flags, got {periodic!r}")
-        if box is not None:
-            lo = np.asarray(box[0], float).reshape(3)
-            hi = np.asarray(box[1], float).reshape(3)
-            if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi > lo)):
-                raise ValueError(f"box must be (lo, hi) with finite hi > lo, got {box!r}")
-            box = (lo, hi)
-        elif any(per):
-            raise ValueError("periodic axes need box=(lo, hi)")
+        per = as_periodic(periodic)
+        box = as_box(box)
+        if box is None and any(per):
+            raise PecletArgumentError("box", "(lo, hi) when an axis is periodic", None)
         _, _, ii, ir = builder.encode()
         roots = sorted(set(ii[:, 0].tolist()))
         prog_of = {r: k for k, r in enumerate(roots)}
         programs = [builder.program(r) for r in roots]
         frames, balls, cert, inst_prog = [], [], [], []
         for k in range(n):
-            root = int(ii[k, 0])
-            t, q, s = ir[k, 0:3], ir[k, 3:7], float(ir[k, 7])
+            root = int(ii[k, INST_ROOT])
+            t, q, s = instance_transform(ir[k])
             R = quat_to_matrix(q)
             frames.append(np.concatenate([t, R.reshape(-1), [s]]))
             c0, r0, certified = builder.node_bound(root)
@@ -233,11 +250,15 @@ class Scene:
                 length = box[1] - box[0]
                 for a in range(3):
                     if per[a] and not (box[0][a] <= t[a] < box[1][a]):
-                        raise ValueError(f"instance {k}: translation[{a}]={t[a]} must lie in "
-                                         f"the periodic box [{box[0][a]}, {box[1][a]})")
+                        raise PecletArgumentError(
+                            "box", f"a box whose periodic axis {a} holds instance {k}'s "
+                            f"translation[{a}]={t[a]} in [lo, hi)", (box[0].tolist(),
+                                                                     box[1].tolist()))
                     if per[a] and not r <= length[a]:
-                        raise ValueError(f"instance {k}: bounding radius {r} exceeds the "
-                                         f"periodic box length {length[a]} on axis {a}")
+                        raise PecletArgumentError(
+                            "box", f"a box whose periodic length on axis {a} is at least "
+                            f"instance {k}'s bounding radius {r}", (box[0].tolist(),
+                                                                     box[1].tolist()))
             balls.append(np.concatenate([c, [r]]))
             cert.append(certified and np.isfinite(r))
             inst_prog.append(prog_of[root])
@@ -254,8 +275,7 @@ class Scene:
         return np.ascontiguousarray(pts)
 
     def evaluate(self, points, method="pruned"):
-        if method not in ("pruned", "brute"):
-            raise ValueError(f"method must be 'pruned' or 'brute', got {method!r}")
+        method = check_choice("method", method, ("pruned", "brute"))
         pts = self._wrap(points)
         out = np.empty(len(pts))
         ops, lk, lr, ranges = self._progs

@@ -16,55 +16,36 @@ import math
 import numpy as np
 from numba import njit
 
+from peclet.core.validation import check_float, check_int
+
+from .builder import as_points
+from .mesh import MAX_LATTICE, surface_mesh
+
 #: Probes must satisfy |phi| <= this after projection.
 PROBE_TOL = 1e-6
+#: Most probes one call may ask for (thinning costs ~ oversample * target^2).
+MAX_PROBES = 1_000_000
 
 
 def even_spacing(area, count):
     """Nearest-neighbour spacing of ``count`` points in a hexagonal packing over ``area``."""
-    area = float(area)
-    if not (math.isfinite(area) and area > 0.0):
-        raise ValueError(f"area must be a finite number > 0, got {area!r}")
-    if not (isinstance(count, (int, np.integer)) and count >= 1):
-        raise ValueError(f"count must be an integer >= 1, got {count!r}")
+    area = check_float("area", area, 0.0, math.inf, lo_open=True)
+    count = check_int("count", count, 1)
     return math.sqrt(2.0 * area / (math.sqrt(3.0) * count))
 
 
 def count_for_spacing(area, spacing):
     """Probe count whose even (hexagonal) spread over ``area`` has NN spacing ``spacing``."""
-    area = float(area)
-    spacing = float(spacing)
-    if not (math.isfinite(area) and area > 0.0):
-        raise ValueError(f"area must be a finite number > 0, got {area!r}")
-    if not (math.isfinite(spacing) and spacing > 0.0):
-        raise ValueError(f"spacing must be a finite number > 0, got {spacing!r}")
+    area = check_float("area", area, 0.0, math.inf, lo_open=True)
+    spacing = check_float("spacing", spacing, 0.0, math.inf, lo_open=True)
     return int(math.ceil(2.0 * area / (math.sqrt(3.0) * spacing * spacing)))
 
 
-def surface_mesh(builder, root, resolution, lo, hi):
-    """(vertices (V, 3), faces (F, 3), area) of the marching-cubes surface of ``root``."""
-    from skimage import measure
-    lo = np.asarray(lo, dtype=np.float64).reshape(3)
-    hi = np.asarray(hi, dtype=np.float64).reshape(3)
-    res = int(resolution)
-    sp = (hi - lo) / (res - 1)
-    # a narrow band one lattice-cell diagonal wide gives the same mesh (see SceneBuilder.bake)
-    band = float(np.linalg.norm(sp)) if builder.is_lipschitz(root) else None
-    vals = builder.bake(root, origin=lo, spacing=sp, dims=[res] * 3, band=band)
-    grid = np.ascontiguousarray(vals.reshape((res, res, res), order="F"))
-    if not (grid.min() < 0.0 < grid.max()):
-        raise ValueError("no surface inside the box: phi does not change sign on the lattice "
-                         f"(resolution {res} may be too coarse, or the solid is empty)")
-    verts, faces, _, _ = measure.marching_cubes(grid, level=0.0, spacing=tuple(sp))
-    verts = verts + lo
-    area = float(measure.mesh_surface_area(verts, faces))
-    return verts, faces, area
-
-
 def project(builder, root, points, iters=8):
-    """Newton-project ``points`` onto phi = 0; returns (points, |phi|) after ``iters`` steps."""
-    p = np.array(points, dtype=np.float64)
-    for _ in range(iters):
+    """Newton-project ``points`` (N, 3) onto phi = 0; returns (points, |phi|) after ``iters``
+    (an int in [0, 1000]) steps along the analytic gradient."""
+    p = as_points(points).copy()
+    for _ in range(check_int("iters", iters, 0, 1000)):
         phi, g = builder.eval_root_grad(root, p)
         gg = np.einsum("ij,ij->i", g, g)
         gg[gg == 0.0] = 1.0
@@ -76,14 +57,10 @@ def project(builder, root, points, iters=8):
 def farthest_point_order(points, count, start):
     """Indices of ``count`` points chosen greedily farthest from those already chosen
     (ties: the lowest index), starting at index ``start``."""
-    pts = np.ascontiguousarray(points, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    if not 1 <= int(count) <= len(pts):
-        raise ValueError(f"count must be in [1, {len(pts)}], got {count!r}")
-    if not 0 <= int(start) < len(pts):
-        raise ValueError(f"start must be in [0, {len(pts) - 1}], got {start!r}")
-    return _farthest_point_order(pts, int(count), int(start))
+    pts = as_points(points)
+    count = check_int("count", count, 1, max(len(pts), 1))
+    start = check_int("start", start, 0, len(pts) - 1)
+    return _farthest_point_order(pts, count, start)
 
 
 @njit(cache=True)
@@ -116,20 +93,21 @@ def _farthest_point_order(pts, count, start):
 def shell_probes(builder, root, target, resolution, lo, hi, seed=0, oversample=16):
     """(probes (M, 3), stats dict) on the surface of ``root``; M == ``target``.
 
-    ``resolution`` (int >= 8) is the marching-cubes lattice size per axis over [lo, hi];
-    ``target`` (int >= 4) the probe count. Every probe has |phi| <= 1e-6 (Newton-projected;
+    ``resolution`` (int in [8, 1024]) is the marching-cubes lattice size per axis over
+    [lo, hi]; ``target`` (int in [4, 1e6]) the probe count; ``seed`` (int >= 0) the numpy
+    generator seed; ``oversample`` (int in [1, 1024]) dense samples per probe before thinning. Every probe has |phi| <= 1e-6 (Newton-projected;
     samples that do not converge, e.g. at a sharp crease, are dropped before thinning).
     ``stats``: area (marching-cubes), median / p90 / mean nearest-neighbour spacing, the even-
     spread spacing for this count and area, and the count an even spread needs for a given
     spacing is :func:`count_for_spacing`. Coordinates are those of the root's parent frame.
     """
     from scipy.spatial import cKDTree
-    if isinstance(target, bool) or not isinstance(target, (int, np.integer)) or target < 4:
-        raise ValueError(f"target (shell points) must be an integer >= 4, got {target!r}")
-    if (isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer))
-            or not 8 <= resolution <= 1024):
-        raise ValueError(f"resolution must be an integer in [8, 1024], got {resolution!r}")
-    verts, faces, area = surface_mesh(builder, root, resolution, lo, hi)
+    target = check_int("target", target, 4, MAX_PROBES)
+    resolution = check_int("resolution", resolution, 8, MAX_LATTICE)
+    seed = check_int("seed", seed, 0)
+    oversample = check_int("oversample", oversample, 1, 1024)
+    # open at the box: a probe must lie on phi = 0, never on a cut face
+    verts, faces, area = surface_mesh(builder, root, lo, hi, resolution, close=False)
     rng = np.random.default_rng(seed)
     tri = verts[faces]
     a = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)

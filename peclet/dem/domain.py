@@ -1,0 +1,59 @@
+"""The simulation's box: an axis-aligned domain [lo, hi) and which of its axes are periodic."""
+from __future__ import annotations
+
+import numpy as np
+
+from peclet.core.validation import PecletArgumentError, check_array, check_bool
+
+
+class Domain:
+    """``lo``/``hi`` (3,) world-frame bounds (None until set) and ``periodic`` (3,) bools.
+
+    The box is used by periodic axes (wrap, minimum images) and by the speed guard (its size);
+    a periodic axis needs the box before stepping."""
+
+    def __init__(self):
+        self.lo = None
+        self.hi = None
+        self.periodic = np.zeros(3, np.bool_)
+
+    def set_box(self, lo, hi):
+        lo = check_array("lo", lo, (3,))
+        hi = check_array("hi", hi, (3,))
+        if not np.all(hi > lo):
+            raise PecletArgumentError("hi", "greater than lo on every axis of the domain",
+                                      hi.tolist(), f"lo = {lo.tolist()}")
+        self.lo, self.hi = lo.copy(), hi.copy()
+
+    def set_periodic(self, px, py, pz):
+        self.periodic = np.array([check_bool("px", px), check_bool("py", py),
+                                  check_bool("pz", pz)], np.bool_)
+
+    def check_ready(self):
+        if self.periodic.any() and self.lo is None:
+            raise PecletArgumentError("periodic axes", "used with a domain: call "
+                                      "set_domain(lo, hi) first", self.periodic.tolist())
+
+    def check_cutoff(self, cutoff):
+        """A periodic axis must be longer than twice the interaction cutoff (minimum image)."""
+        for a in np.flatnonzero(self.periodic):
+            L = self.hi[a] - self.lo[a]
+            if L <= 2.0 * cutoff:
+                raise PecletArgumentError(
+                    f"domain (periodic axis {a})", f"longer than twice the interaction "
+                    f"cutoff {cutoff} (2 * largest bounding radius + margin)", float(L))
+
+    def wrap(self, pos):
+        """Move ``pos`` (N, 3) into [lo, hi) along every periodic axis, in place; returns it."""
+        if self.periodic.any():
+            for a in np.flatnonzero(self.periodic):
+                L = self.hi[a] - self.lo[a]
+                pos[:, a] = self.lo[a] + np.mod(pos[:, a] - self.lo[a], L)
+                # np.mod may round up to exactly L
+                pos[pos[:, a] >= self.hi[a], a] = self.lo[a]
+        return pos
+
+    def grid_box(self):
+        """(lo, hi) for the broad phase's grid: the domain, else the unit box."""
+        return (self.lo if self.lo is not None else np.zeros(3),
+                self.hi if self.hi is not None else np.ones(3))

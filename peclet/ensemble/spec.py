@@ -1,0 +1,233 @@
+"""What one realization is: :class:`PackSpec`, its id, and the ensemble built from seeds x sweep.
+
+A realization is a deterministic function of its :class:`PackSpec` (element, container, count,
+protocol, material, seed, ...). Its id is readable and content-addressed: ``s<seed>-<16 hex>``,
+the hex the start of the SHA-256 of the spec's canonical JSON, so the same spec always lands in
+the same ``OUT/<spec-id>/`` directory and two different specs never share one.
+
+``--seeds`` text: comma-separated integers >= 0 and inclusive ranges, e.g. ``1-32`` or
+``1-4,10,20-22``. ``--sweep`` text: ``KEY=V1,V2,...`` with KEY one of :data:`SWEEPABLE`; several
+sweeps combine as a Cartesian product.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import re
+
+from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
+
+__all__ = ["PackSpec", "SWEEPABLE", "PROTOCOLS", "check_field", "parse_seeds", "parse_sweep",
+           "make_specs", "ensemble_manifest", "MAX_REALIZATIONS"]
+
+#: Version of the spec / results layout; part of every id, so a layout change never reuses
+#: an old directory.
+FORMAT = "peclet-ensemble/1"
+
+#: Largest ensemble one call accepts (seeds x sweep points); a typo like ``1-1000000`` is
+#: refused before anything runs.
+MAX_REALIZATIONS = 100_000
+_MAX_SEED = 2 ** 63 - 1
+
+#: Parameters a sweep may vary, with their check (the same one a fixed value goes through).
+SWEEPABLE = ("mu", "e_n", "e_t", "count", "steps_scale")
+
+#: Protocols of ``peclet.packing.pack`` a spec may name.
+PROTOCOLS = ("page", "rain")
+
+
+def check_field(name, value, arg=None):
+    """``value`` checked against the accepted range of the numeric spec field ``name``, in one
+    place (fixed and swept values alike); errors name ``arg`` (default ``name``)."""
+    arg = arg or name
+    if name == "mu":
+        return check_float(arg, value, 0.0)
+    if name == "e_n":
+        return check_float(arg, value, 0.0, 1.0)
+    if name == "e_t":
+        return check_float(arg, value, -1.0, 1.0)
+    if name == "count":
+        return check_int(arg, value, 1, 1_000_000)
+    if name == "steps_scale":
+        return check_float(arg, value, 0.0, 100.0, lo_open=True)
+    if name == "seed":
+        return check_int(arg, value, 0, _MAX_SEED)
+    if name == "mc_samples":
+        return check_int(arg, value, 1000, 100_000_000)
+    raise KeyError(name)
+
+
+@dataclasses.dataclass(frozen=True)
+class PackSpec:
+    """One realization: pour ``count`` copies of ``element`` into ``container`` with
+    ``protocol`` (its step counts times ``steps_scale``), body material (e_n, e_t, mu) (walls
+    the same), start cloud from ``seed``; then measure eps, f_env (``mc_samples`` Monte Carlo
+    points in the first bulk window) and the mean coordination Z.
+
+    element: a library name (``peclet.packing.ELEMENTS``); container: ``"box:L"`` etc. as
+    ``peclet.packing.pack`` reads it; lengths in element diameters D.
+    """
+
+    element: str = "pall_ring"
+    container: str = "box:3.5"
+    count: int = 48
+    protocol: str = "page"
+    steps_scale: float = 1.0
+    e_n: float = 0.15
+    e_t: float = 0.0
+    mu: float = 0.5
+    seed: int = 5
+    mc_samples: int = 400_000
+
+    def __post_init__(self):
+        for name in ("element", "container", "protocol"):
+            v = getattr(self, name)
+            if not isinstance(v, str) or not v:
+                raise PecletArgumentError(name, "a non-empty string", v)
+        for name in ("count", "steps_scale", "e_n", "e_t", "mu", "seed", "mc_samples"):
+            object.__setattr__(self, name, check_field(name, getattr(self, name)))
+        # the same cheap checks pack() makes, here so a bad spec fails before a cluster starts
+        from peclet.packing.containers import parse_container
+        from peclet.packing.elements import ELEMENTS
+
+        check_choice("element", self.element, sorted(ELEMENTS))
+        parse_container(self.container)
+        check_choice("protocol", self.protocol, PROTOCOLS)
+        if self.steps_scale != 1.0 and self.protocol != "page":
+            raise PecletArgumentError("steps_scale", "1 unless protocol is 'page'",
+                                      self.steps_scale)
+
+    def as_dict(self):
+        """The spec as a JSON-able dict (field name -> value)."""
+        return dataclasses.asdict(self)
+
+    def canonical(self):
+        """Canonical JSON text (sorted keys, floats as their shortest round-trip repr)."""
+        return json.dumps(dict(self.as_dict(), format=FORMAT), sort_keys=True,
+                          separators=(",", ":"))
+
+    @property
+    def id(self):
+        """``s<seed>-<first 16 hex of SHA-256(canonical())>``: a directory name."""
+        h = hashlib.sha256(self.canonical().encode()).hexdigest()[:16]
+        return f"s{self.seed}-{h}"
+
+    @classmethod
+    def from_dict(cls, d):
+        """Inverse of :meth:`as_dict` (unknown keys are an error)."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        extra = sorted(set(d) - names)
+        if extra:
+            raise PecletArgumentError("spec", f"a dict with keys from {sorted(names)}",
+                                      extra, "unknown keys")
+        return cls(**d)
+
+
+_INT = r"\d+"
+
+
+def parse_seeds(text, name="seeds"):
+    """``"1-32"`` / ``"1,3,5"`` / ``"1-4,10"`` -> sorted list of distinct ints >= 0.
+
+    Raises PecletArgumentError naming ``name`` on empty items, a reversed range, a negative or
+    non-integer seed, a seed given twice, or more than :data:`MAX_REALIZATIONS` seeds.
+    """
+    what = "comma-separated seeds >= 0 or ranges A-B (A <= B), e.g. 1-32 or 1-4,10"
+    if not isinstance(text, str) or not text.strip():
+        raise PecletArgumentError(name, what, text)
+    seen = []
+    for item in text.split(","):
+        item = item.strip()
+        m = re.fullmatch(rf"({_INT})(?:\s*-\s*({_INT}))?", item)
+        if not m:
+            raise PecletArgumentError(name, what, text, f"bad item {item!r}")
+        a = int(m.group(1))
+        b = int(m.group(2)) if m.group(2) is not None else a
+        if b < a:
+            raise PecletArgumentError(name, what, text, f"reversed range {item!r}")
+        if b > _MAX_SEED:
+            raise PecletArgumentError(name, what, text, f"seed above 2**63-1 in {item!r}")
+        if len(seen) + (b - a + 1) > MAX_REALIZATIONS:
+            raise PecletArgumentError(name, what, text,
+                                      f"more than {MAX_REALIZATIONS} seeds")
+        seen.extend(range(a, b + 1))
+    if len(set(seen)) != len(seen):
+        dup = sorted({s for s in seen if seen.count(s) > 1})[:3]
+        raise PecletArgumentError(name, what, text, f"seed(s) {dup} given twice")
+    return sorted(seen)
+
+
+def parse_sweep(items, name="sweep"):
+    """``["mu=0.3,0.5,0.8", "count=24,48"]`` (or one string) -> ``{"mu": [...], ...}`` in the
+    given order; each value checked like a fixed value of that parameter.
+
+    Raises PecletArgumentError naming ``name`` on a missing ``=``, a key not in
+    :data:`SWEEPABLE`, a key swept twice, an empty or unparsable value, a value out of range,
+    or a value given twice.
+    """
+    what = f"KEY=V1,V2,... with KEY one of {', '.join(SWEEPABLE)}"
+    if items is None:
+        return {}
+    if isinstance(items, str):
+        items = [items]
+    out = {}
+    for item in items:
+        if not isinstance(item, str) or "=" not in item:
+            raise PecletArgumentError(name, what, item)
+        key, _, vals = item.partition("=")
+        key = key.strip()
+        if key not in SWEEPABLE:
+            raise PecletArgumentError(name, what, item, f"unknown parameter {key!r}")
+        if key in out:
+            raise PecletArgumentError(name, what, item, f"{key} swept twice")
+        parsed = []
+        for v in vals.split(","):
+            v = v.strip()
+            try:
+                num = float(v)
+            except ValueError:
+                raise PecletArgumentError(name, what, item, f"{v!r} is not a number") from None
+            if key == "count" and not (math.isfinite(num) and num.is_integer()):
+                raise PecletArgumentError(name, what, item, f"count {v!r} is not an integer")
+            try:
+                parsed.append(check_field(key, num, f"{name} {key}"))
+            except PecletArgumentError as exc:
+                raise PecletArgumentError(name, what, item, str(exc)) from None
+        if len(set(parsed)) != len(parsed):
+            raise PecletArgumentError(name, what, item, "a value given twice")
+        out[key] = parsed
+    return out
+
+
+def make_specs(seeds, sweep=None, **fixed):
+    """Every (sweep point, seed) as a :class:`PackSpec`, sweep points in the given order and
+    seeds inner. ``fixed``: the other PackSpec fields; a swept key must not also be fixed."""
+    sweep = dict(sweep or {})
+    clash = sorted(set(sweep) & {k for k, v in fixed.items() if v is not None})
+    if clash:
+        raise PecletArgumentError("sweep", "parameters not also given as fixed values",
+                                  clash)
+    fixed = {k: v for k, v in fixed.items() if v is not None}
+    keys = list(sweep)
+    points = list(itertools.product(*(sweep[k] for k in keys))) if keys else [()]
+    if len(points) * len(seeds) > MAX_REALIZATIONS:
+        raise PecletArgumentError("sweep", f"at most {MAX_REALIZATIONS} realizations in all",
+                                  len(points) * len(seeds), "seeds x sweep points")
+    return [PackSpec(**fixed, **dict(zip(keys, p)), seed=s) for p in points for s in seeds]
+
+
+def ensemble_manifest(specs, swept=None):
+    """What identifies an ensemble (written to ``OUT/ensemble.json``): the fields shared by
+    every spec except the seed and the swept ones, and the swept names. Adding seeds or sweep
+    values later keeps the manifest; changing a fixed field or what is swept changes it."""
+    if not specs:
+        raise PecletArgumentError("specs", "a non-empty list of PackSpec", specs)
+    dicts = [s.as_dict() for s in specs]
+    varying = sorted(k for k in dicts[0] if k != "seed"
+                     and any(d[k] != dicts[0][k] for d in dicts))
+    swept = sorted(set(varying) | set(swept or ()))
+    fixed = {k: v for k, v in dicts[0].items() if k != "seed" and k not in swept}
+    return dict(format=FORMAT, fixed=fixed, swept=swept)

@@ -1,0 +1,20 @@
+"""Hook specifications of the peclet pytest plugin (registered with ``pytest_addhooks``).
+
+A downstream project certifies its own engine with one function in its ``conftest.py``::
+
+    def pytest_peclet_make_backend(config):
+        from my_engine import MyEngine
+        return MyEngine()          # evaluate(node_ints, node_reals, root, points) -> phi
+
+and one test module that imports the certificates: ``from peclet_verify.suite import *``.
+"""
+import pytest
+
+
+@pytest.hookspec(firstresult=True)
+def pytest_peclet_make_backend(config):
+    """Return the engine under certification (an object with ``evaluate``, optionally
+    ``evaluate_grad``, ``bound``, ``close`` and ``name``; see :mod:`peclet_verify.backends`),
+    or None to leave the choice to another plugin. Called once per session (per xdist
+    worker), only when a certificate needs the backend and ``--peclet-backend`` is not given
+    (the command line wins)."""

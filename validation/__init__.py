@@ -1,0 +1,1 @@
+"""Validation scripts: the packing chain against published data (run them as scripts)."""
