@@ -15,6 +15,8 @@ Used by the suite's own tests and by anyone who wants to see a certificate fail:
 """
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from numba import njit, prange
 
@@ -246,36 +248,13 @@ class BadAnswerBackend:
         return phi[:-1]  # short
 
 
-def nan_backend():
-    """Factory (for ``--peclet-backend``): answers NaN everywhere."""
-    return BadAnswerBackend("nan")
-
-
-def inf_backend():
-    """Factory: answers +inf wherever the reference is positive."""
-    return BadAnswerBackend("inf")
-
-
-def none_backend():
-    """Factory: answers None."""
-    return BadAnswerBackend("none")
-
-
-def empty_backend():
-    """Factory: answers an empty array."""
-    return BadAnswerBackend("empty")
-
-
-def short_backend():
-    """Factory: answers one value fewer than it was asked for."""
-    return BadAnswerBackend("short")
-
-
-def zero_backend():
-    """Factory: answers 0.0 everywhere."""
-    return BadAnswerBackend("zero")
-
-
-def raising_backend():
-    """Factory: raises on every call."""
-    return BadAnswerBackend("raise")
+# Factories for ``--peclet-backend`` (e.g. ``peclet_verify.planted:nan_backend``), one per
+# planted bad answer: NaN everywhere; +inf wherever the reference is positive; None; an empty
+# array; one value fewer than asked for; 0.0 everywhere; an exception on every call.
+nan_backend = partial(BadAnswerBackend, "nan")
+inf_backend = partial(BadAnswerBackend, "inf")
+none_backend = partial(BadAnswerBackend, "none")
+empty_backend = partial(BadAnswerBackend, "empty")
+short_backend = partial(BadAnswerBackend, "short")
+zero_backend = partial(BadAnswerBackend, "zero")
+raising_backend = partial(BadAnswerBackend, "raise")

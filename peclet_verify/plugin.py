@@ -35,8 +35,6 @@ import pytest
 PROFILES = ("dev", "ci", "nightly", "smoke")  # = peclet_verify.profiles.PROFILES (a test checks)
 USER_PROPERTY = "peclet_certificate"
 _STATE = pytest.StashKey[dict]()
-_NEEDS_CERTIFY = ("--peclet-profile", "--peclet-report", "--peclet-backend", "--peclet-compare",
-                  "--peclet-xfails", "--peclet-replay")
 
 
 def pytest_addhooks(pluginmanager):
@@ -44,29 +42,44 @@ def pytest_addhooks(pluginmanager):
     pluginmanager.add_hookspecs(hooks)
 
 
+#: The option group: (flag, metavar or None for a switch, help). Every option but the first
+#: needs --peclet-certify.
+_OPTIONS = (
+    ("--peclet-certify", None,
+     "run the peclet certification properties (marker peclet_certify)"),
+    ("--peclet-profile", "NAME",
+     "certification profile: dev (default; 25 examples, random), ci (40, derandomised, no "
+     "database), nightly (2000, random, example database), smoke (2; for testing the plugin "
+     "itself)"),
+    ("--peclet-report", "PATH",
+     "write the certificates as JSON to PATH (atomic; never replaces a file that is not a "
+     "peclet report)"),
+    ("--peclet-backend", "MODULE:FACTORY",
+     "engine to certify: factory() returns an object with evaluate(...) (default: the "
+     "pytest_peclet_make_backend hook, else the reference)"),
+    ("--peclet-compare", "PREVIOUS.json",
+     "fail if a certificate that passed in PREVIOUS.json fails now, or its figure got worse "
+     "beyond the documented tolerance"),
+    ("--peclet-xfails", "FILE",
+     "known deviations (TOML or JSON: certificate -> reason [, kinds]); a matching failure "
+     "is reported as waived, not failed"),
+    ("--peclet-replay", "DIR",
+     "re-run only the examples saved in the example database DIR (read-only, nothing "
+     "generated), e.g. the last nightly's"),
+)
+
+_NEEDS_CERTIFY = tuple(flag for flag, _, _ in _OPTIONS[1:])
+
+
 def pytest_addoption(parser):
     group = parser.getgroup("peclet", "peclet certification")
-    group.addoption("--peclet-certify", action="store_true", default=False,
-                    help="run the peclet certification properties (marker peclet_certify)")
-    group.addoption("--peclet-profile", choices=PROFILES, default=None,
-                    help="certification profile: dev (default; 25 examples, random), ci (40, "
-                         "derandomised, no database), nightly (2000, random, example "
-                         "database), smoke (2; for testing the plugin itself)")
-    group.addoption("--peclet-report", metavar="PATH", default=None,
-                    help="write the certificates as JSON to PATH (atomic; never replaces a "
-                         "file that is not a peclet report)")
-    group.addoption("--peclet-backend", metavar="MODULE:FACTORY", default=None,
-                    help="engine to certify: factory() returns an object with evaluate(...) "
-                         "(default: the pytest_peclet_make_backend hook, else the reference)")
-    group.addoption("--peclet-compare", metavar="PREVIOUS.json", default=None,
-                    help="fail if a certificate that passed in PREVIOUS.json fails now, or "
-                         "its figure got worse beyond the documented tolerance")
-    group.addoption("--peclet-xfails", metavar="FILE", default=None,
-                    help="known deviations (TOML or JSON: certificate -> reason [, kinds]); "
-                         "a matching failure is reported as waived, not failed")
-    group.addoption("--peclet-replay", metavar="DIR", default=None,
-                    help="re-run only the examples saved in the example database DIR "
-                         "(read-only, nothing generated), e.g. the last nightly's")
+    for flag, metavar, text in _OPTIONS:
+        if metavar is None:
+            group.addoption(flag, action="store_true", default=False, help=text)
+        elif flag == "--peclet-profile":
+            group.addoption(flag, choices=PROFILES, default=None, help=text)
+        else:
+            group.addoption(flag, metavar=metavar, default=None, help=text)
 
 
 def _is_worker(config) -> bool:

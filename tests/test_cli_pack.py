@@ -86,6 +86,11 @@ def test_a_small_run_writes_its_files_and_table(tmp_path, capsys):
     # a rerun into the same --out needs --overwrite
     code, _, err = _run(capsys, ["pack", "--out", str(out), "--no-figures"] + FAST)
     assert code == 2 and "--out must be" in err
+    # with --overwrite the old run's figures do not stay beside the new results
+    code, _, _ = _run(capsys, ["pack", "--out", str(out), "--no-figures", "--overwrite",
+                               "--seed", "6"] + FAST)
+    assert code == 0 and not (out / "bed.png").exists() and not (out / "bed.stl").exists()
+    assert json.loads((out / "results.json").read_text())["spec"]["seed"] == 6
 
 
 def test_resume_finishes_an_interrupted_run_bit_for_bit(tmp_path, capsys):

@@ -178,8 +178,8 @@ def run(args):
     if args.protocol == "rain":
         proto = dataclasses.replace(proto, batch=batch, insert_every=every_k, drop=drop)
     cdir = os.path.join(out, "checkpoint")
-    if args.overwrite:
-        _clear(out)
+    if args.overwrite and os.path.isdir(cdir):   # the rest is replaced when the run is done
+        shutil.rmtree(cdir)
     from peclet.packing import Material
     try:
         res = api.pack(args.element, args.container, count, proto, Material(e, 0.0, mu),
@@ -198,6 +198,8 @@ def _finish(res, out, args, cdir):
     from peclet.packing.freeze import save_pack
 
     os.makedirs(out, exist_ok=True)
+    if args.overwrite:                 # no figure of the old run left beside the new results
+        _clear(out, keep=cdir)
     save_pack(os.path.join(out, "pack.npz"), res.pack)
     report = bed_report.analyse(res, out, figures=not args.no_figures,
                                 exports=not args.no_figures, samples=args.samples,

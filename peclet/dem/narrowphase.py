@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit, prange
 
 from peclet.core.geom.kernels import MAX_STACK, STACK_COLS, eval_point
+from peclet.dem.distgrid import lower_bound
 
 MAX_CLUSTERS = 4
 POINTS_PER_CLUSTER = 4
@@ -70,10 +71,12 @@ class Slots(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin, geo, st,
-                   hits, nh):
+def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin, ops, lk, lr,
+                   grid, goff, gdims, goh, st, hits, nh):
     """A point (a probe with r = 0, or a sphere's centre with its radius r) against a tree
-    placed at xt with rotation Rt; ``sgn`` = -1 for an inverted wall. Appends at most one hit."""
+    placed at xt with rotation Rt; ``sgn`` = -1 for an inverted wall; the tree's distance grid
+    (``gdims[0]`` = 0: none) spares the evaluation of a point it proves out of reach. Appends
+    at most one hit."""
     dx = px - xt[0]
     dy = py - xt[1]
     dz = pz - xt[2]
@@ -83,7 +86,9 @@ def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin
     lim = trad + r + margin
     if qx * qx + qy * qy + qz * qz > lim * lim:
         return nh
-    phi, gx, gy, gz = eval_point(geo.ops, geo.lk, geo.lr, o0, o1, qx, qy, qz, st)
+    if lower_bound(grid, goff, gdims, goh, qx, qy, qz) - r > margin:
+        return nh
+    phi, gx, gy, gz = eval_point(ops, lk, lr, o0, o1, qx, qy, qz, st)
     phi = sgn * phi - r
     if not (phi < margin):
         return nh
@@ -110,36 +115,94 @@ def _point_vs_tree(px, py, pz, r, xt, Rt, o0, o1, sgn, trad, nsign, feat, margin
 
 
 @njit(cache=True, inline="always")
+def _sphere_bound(xa, Ra, c, rad, xt, Rt, o0, o1, sgn, lip, trad, margin, ops, lk, lr,
+                  grid, goff, gdims, goh, st):
+    """A lower bound of the tree's (signed) phi at body a's home-frame point ``c``, the centre
+    of a sphere of radius ``rad``: +inf (nothing evaluated) when the sphere lies beyond the
+    tree's bounding sphere ``trad`` by more than the margin; on a 1-Lipschitz tree the
+    distance grid's bound where it has one, else the value at c; otherwise -inf (no bound)."""
+    cx = xa[0] + Ra[0, 0] * c[0] + Ra[0, 1] * c[1] + Ra[0, 2] * c[2]
+    cy = xa[1] + Ra[1, 0] * c[0] + Ra[1, 1] * c[1] + Ra[1, 2] * c[2]
+    cz = xa[2] + Ra[2, 0] * c[0] + Ra[2, 1] * c[1] + Ra[2, 2] * c[2]
+    dx = cx - xt[0]
+    dy = cy - xt[1]
+    dz = cz - xt[2]
+    lim = trad + rad + margin
+    if dx * dx + dy * dy + dz * dz > lim * lim:
+        return np.inf
+    if not lip:
+        return -np.inf
+    qx = Rt[0, 0] * dx + Rt[1, 0] * dy + Rt[2, 0] * dz
+    qy = Rt[0, 1] * dx + Rt[1, 1] * dy + Rt[2, 1] * dz
+    qz = Rt[0, 2] * dx + Rt[1, 2] * dy + Rt[2, 2] * dz
+    if gdims[0] > 0:
+        return lower_bound(grid, goff, gdims, goh, qx, qy, qz)
+    return sgn * eval_point(ops, lk, lr, o0, o1, qx, qy, qz, st)[0]
+
+
+@njit(cache=True)
+def _sort_hits(hits, n0, n1):
+    """Insertion sort of the rows [n0, n1) by feature id: the probe order, whatever order the
+    culling visited them in (so the reduction sees the same rows in the same order)."""
+    for i in range(n0 + 1, n1):
+        j = i
+        while j > n0 and hits[j - 1, _HF] > hits[j, _HF]:
+            for e in range(HIT_COLS):
+                v = hits[j, e]
+                hits[j, e] = hits[j - 1, e]
+                hits[j - 1, e] = v
+            j -= 1
+
+
+@njit(cache=True, inline="always")
 def _probes_vs_tree(xa, Ra, s, geo, xt, Rt, o0, o1, sgn, lip, trad, nsign, fbase, margin,
-                    st, hits, nh):
-    """Body a's shell probes (shape s, at xa with rotation Ra) against a tree. Clusters whose
-    bounding sphere is provably farther than the margin are skipped (1-Lipschitz trees only)."""
-    shape_p0, shape_cl, probes = geo.shape_p0, geo.shape_cl, geo.probes
+                    phr, grid, goff, gdims, goh, st, hits, nh):
+    """Body a's shell probes (shape s, at xa with rotation Ra) against a tree, hits in probe
+    order. ``phr``: a lower bound of the tree's signed phi at xa (-inf: none); ``grid``,
+    ``goff``, ``gdims``, ``goh``: the tree's distance grid (``gdims[0]`` = 0: none).
+
+    Culling, from coarse to fine, never drops a hit (a 1-Lipschitz phi grows by at most the
+    distance travelled): the whole shape when ``phr`` exceeds its radius + margin; a
+    super-cluster skipped without evaluation when ``phr`` minus its offset does; a super-cluster
+    or cluster whose bounding sphere is beyond the tree's
+    bounding sphere, or on which phi's bound exceeds its radius + margin, is skipped; a cluster
+    is skipped without evaluation when the super-cluster's value minus the cluster's offset
+    already does; a probe is skipped when its cluster's value minus its offset exceeds the
+    margin. Non-Lipschitz trees get the sphere tests only."""
+    shape_p0, probes, probe_off = geo.shape_p0, geo.probes, geo.probe_off
     cl_centre, cl_rad, cl_range = geo.cl_centre, geo.cl_rad, geo.cl_range
+    gr_centre, gr_rad, gr_range = geo.gr_centre, geo.gr_rad, geo.gr_range
+    gr_member, gr_off = geo.gr_member, geo.gr_off
     ops, lk, lr = geo.ops, geo.lk, geo.lr
-    for c in range(shape_cl[s, 0], shape_cl[s, 1]):
-        cx = xa[0] + Ra[0, 0] * cl_centre[c, 0] + Ra[0, 1] * cl_centre[c, 1] + Ra[0, 2] * cl_centre[c, 2]
-        cy = xa[1] + Ra[1, 0] * cl_centre[c, 0] + Ra[1, 1] * cl_centre[c, 1] + Ra[1, 2] * cl_centre[c, 2]
-        cz = xa[2] + Ra[2, 0] * cl_centre[c, 0] + Ra[2, 1] * cl_centre[c, 1] + Ra[2, 2] * cl_centre[c, 2]
-        dx = cx - xt[0]
-        dy = cy - xt[1]
-        dz = cz - xt[2]
-        lim = trad + cl_rad[c] + margin
-        if dx * dx + dy * dy + dz * dz > lim * lim:
+    gr_dist = geo.gr_dist
+    if phr > geo.shape_rad[s] + margin:
+        return nh
+    n0 = nh
+    for g in range(geo.shape_gr[s, 0], geo.shape_gr[s, 1]):
+        if phr - gr_dist[g] > gr_rad[g] + margin:
             continue
-        if lip:
-            qx = Rt[0, 0] * dx + Rt[1, 0] * dy + Rt[2, 0] * dz
-            qy = Rt[0, 1] * dx + Rt[1, 1] * dy + Rt[2, 1] * dz
-            qz = Rt[0, 2] * dx + Rt[1, 2] * dy + Rt[2, 2] * dz
-            phi = sgn * eval_point(ops, lk, lr, o0, o1, qx, qy, qz, st)[0]
-            if phi > cl_rad[c] + margin:
+        phg = _sphere_bound(xa, Ra, gr_centre[g], gr_rad[g], xt, Rt, o0, o1, sgn, lip, trad,
+                            margin, ops, lk, lr, grid, goff, gdims, goh, st)
+        if phg > gr_rad[g] + margin:
+            continue
+        for m in range(gr_range[g, 0], gr_range[g, 1]):
+            c = gr_member[m]
+            if phg - gr_off[m] > cl_rad[c] + margin:
                 continue
-        for p in range(cl_range[c, 0], cl_range[c, 1]):
-            px = xa[0] + Ra[0, 0] * probes[p, 0] + Ra[0, 1] * probes[p, 1] + Ra[0, 2] * probes[p, 2]
-            py = xa[1] + Ra[1, 0] * probes[p, 0] + Ra[1, 1] * probes[p, 1] + Ra[1, 2] * probes[p, 2]
-            pz = xa[2] + Ra[2, 0] * probes[p, 0] + Ra[2, 1] * probes[p, 1] + Ra[2, 2] * probes[p, 2]
-            nh = _point_vs_tree(px, py, pz, 0.0, xt, Rt, o0, o1, sgn, trad, nsign,
-                                fbase + p - shape_p0[s], margin, geo, st, hits, nh)
+            phc = _sphere_bound(xa, Ra, cl_centre[c], cl_rad[c], xt, Rt, o0, o1, sgn, lip,
+                                trad, margin, ops, lk, lr, grid, goff, gdims, goh, st)
+            if phc > cl_rad[c] + margin:
+                continue
+            for p in range(cl_range[c, 0], cl_range[c, 1]):
+                if phc - probe_off[p] > margin:
+                    continue
+                px = xa[0] + Ra[0, 0] * probes[p, 0] + Ra[0, 1] * probes[p, 1] + Ra[0, 2] * probes[p, 2]
+                py = xa[1] + Ra[1, 0] * probes[p, 0] + Ra[1, 1] * probes[p, 1] + Ra[1, 2] * probes[p, 2]
+                pz = xa[2] + Ra[2, 0] * probes[p, 0] + Ra[2, 1] * probes[p, 1] + Ra[2, 2] * probes[p, 2]
+                nh = _point_vs_tree(px, py, pz, 0.0, xt, Rt, o0, o1, sgn, trad, nsign,
+                                    fbase + p - shape_p0[s], margin, ops, lk, lr, grid, goff,
+                                    gdims, goh, st, hits, nh)
+    _sort_hits(hits, n0, nh)
     return nh
 
 
@@ -237,7 +300,12 @@ def _reduce(hits, nh, lab, reps, tol2, touch, base, out_point, out_normal, out_g
 def _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots):
     """Tasks [ch * size, (ch + 1) * size): gather each task's hits, reduce them into its
     own slots."""
+    # the tables are taken out of the tuple once: a field read in the per-probe loop would
+    # cost a reference-count update per read
     shape_kind, shape_rad, shape_op = geo.shape_kind, geo.shape_rad, geo.shape_op
+    ops, lk, lr = geo.ops, geo.lk, geo.lr
+    grid, goff, gdims, goh = geo.grid, geo.shape_grid_off, geo.shape_grid_dims, geo.shape_grid_oh
+    nogrid = np.zeros(3, np.int64)
     st = np.empty((MAX_STACK, STACK_COLS))
     hits = np.empty((geo.max_hits, HIT_COLS))
     lab = np.empty(geo.max_hits, np.int64)
@@ -283,36 +351,52 @@ def _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots)
             elif shape_kind[sa] == 0:
                 nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb,
                                     shape_op[sb, 0], shape_op[sb, 1], 1.0, shape_rad[sb],
-                                    1.0, 0, margin, geo, st, hits, nh)
+                                    1.0, 0, margin, ops, lk, lr, grid, goff[sb], gdims[sb],
+                                    goh[sb], st, hits, nh)
             elif shape_kind[sb] == 0:
                 nh = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra,
                                     shape_op[sa, 0], shape_op[sa, 1], 1.0, shape_rad[sa],
-                                    -1.0, FEATURE_DIR, margin, geo, st, hits, nh)
+                                    -1.0, FEATURE_DIR, margin, ops, lk, lr, grid, goff[sa],
+                                    gdims[sa], goh[sa], st, hits, nh)
             else:
+                # a bound at each centre covers the whole shape: many candidate pairs of a
+                # settled bed are neighbours that do not touch
+                gd = gdims[sb]
+                gh = goh[sb]
+                phr = _sphere_bound(xa, Ra, origin, shape_rad[sa], xb, Rb, shape_op[sb, 0],
+                                    shape_op[sb, 1], 1.0, geo.shape_lip[sb], shape_rad[sb],
+                                    margin, ops, lk, lr, grid, goff[sb], gd, gh, st)
                 nh = _probes_vs_tree(xa, Ra, sa, geo, xb, Rb, shape_op[sb, 0], shape_op[sb, 1],
                                      1.0, geo.shape_lip[sb], shape_rad[sb], 1.0, 0, margin,
-                                     st, hits, nh)
+                                     phr, grid, goff[sb], gd, gh, st, hits, nh)
+                gd = gdims[sa]
+                gh = goh[sa]
+                phr = _sphere_bound(xb, Rb, origin, shape_rad[sb], xa, Ra, shape_op[sa, 0],
+                                    shape_op[sa, 1], 1.0, geo.shape_lip[sa], shape_rad[sa],
+                                    margin, ops, lk, lr, grid, goff[sa], gd, gh, st)
                 nh = _probes_vs_tree(xb, Rb, sb, geo, xa, Ra, shape_op[sa, 0], shape_op[sa, 1],
                                      1.0, geo.shape_lip[sa], shape_rad[sa], -1.0, FEATURE_DIR,
-                                     margin, st, hits, nh)
+                                     margin, phr, grid, goff[sa], gd, gh, st, hits, nh)
         else:
             w = -1 - b
             sg = geo.wall_sign[w]
             o0 = geo.wall_op[w, 0]
             o1 = geo.wall_op[w, 1]
             skip = False
+            phc = -np.inf
             if geo.wall_lip[w]:
                 # whole-body cull: phi is 1-Lipschitz and the body lies within its radius
-                phc = sg * eval_point(geo.ops, geo.lk, geo.lr, o0, o1, xa[0], xa[1], xa[2],
-                                      st)[0]
+                phc = sg * eval_point(ops, lk, lr, o0, o1, xa[0], xa[1], xa[2], st)[0]
                 skip = phc > shape_rad[sa] + margin
             if not skip:
                 if shape_kind[sa] == 0:
                     nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], origin, ident,
-                                        o0, o1, sg, np.inf, 1.0, 0, margin, geo, st, hits, nh)
+                                        o0, o1, sg, np.inf, 1.0, 0, margin, ops, lk, lr, grid,
+                                        0, nogrid, origin, st, hits, nh)
                 else:
                     nh = _probes_vs_tree(xa, Ra, sa, geo, origin, ident, o0, o1, sg,
-                                         geo.wall_lip[w], np.inf, 1.0, 0, margin, st, hits, nh)
+                                         geo.wall_lip[w], np.inf, 1.0, 0, margin, phc, grid, 0,
+                                         nogrid, origin, st, hits, nh)
         slots.count[t] = _reduce(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
                                  slots.point, slots.normal, slots.gap, slots.feat)
 

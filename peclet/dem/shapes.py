@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from peclet.core.geom import SceneBuilder
+from peclet.dem import distgrid
 from peclet.core.geom.program import compile_root, concatenate
 from peclet.core.validation import (PecletArgumentError, check_array, check_bool,
                                     check_float, check_int)
@@ -26,6 +27,8 @@ SPHERE, SCENE = 0, 1
 
 #: Probe clusters are voxels of this fraction of the shape's bounding radius.
 CLUSTER_CELL_FRACTION = 0.25
+#: Clusters are grouped in super-clusters: voxels of this many cluster cells a side.
+GROUP_CELLS = 2
 
 
 class SphereShape(NamedTuple):
@@ -36,7 +39,9 @@ class SphereShape(NamedTuple):
 class SceneShape(NamedTuple):
     """A composed CSG particle: the flat tree (``node_ints`` (n, 3), ``node_reals`` (n, 16)),
     its ``root`` node, surface ``shell`` probes (M, 3) in the home frame, the bounding radius
-    about the origin, the compiled program, and whether phi is 1-Lipschitz (cluster culling)."""
+    about the origin, the compiled program, whether phi is 1-Lipschitz (cluster culling), and
+    for a 1-Lipschitz tree its :mod:`peclet.dem.distgrid` (``grid`` values, ``grid_dims`` (3,),
+    ``grid_oh`` (origin, h); dims 0 = none)."""
     radius: float
     shell: np.ndarray
     node_ints: np.ndarray
@@ -44,6 +49,9 @@ class SceneShape(NamedTuple):
     root: int
     program: tuple
     lip: bool
+    grid: np.ndarray
+    grid_dims: np.ndarray
+    grid_oh: np.ndarray
 
 
 class Wall(NamedTuple):
@@ -64,7 +72,17 @@ class Geometry(NamedTuple):
     ``shape_op`` / ``wall_op`` (k, 2): the [start, end) op range of the tree in ``ops``/``lk``/
     ``lr`` (-1 for a sphere); ``shape_p0``: first probe of the shape; ``shape_cl`` (k, 2): its
     [start, end) cluster range; ``cl_range`` (C, 2): a cluster's [start, end) probe range;
-    ``wall_sign`` -1 for an inverted wall; ``max_hits``: a task's hit buffer size."""
+    ``probe_off`` (M,): a probe's distance from its cluster's centre (rounded up);
+    ``shape_gr`` (k, 2): the shape's [start, end) super-cluster range; ``gr_centre`` (G, 3),
+    ``gr_rad`` (G,): a super-cluster's bounding sphere (containing its clusters' spheres),
+    ``gr_dist`` (G,) its centre's distance from the shape's origin (rounded up);
+    ``gr_range`` (G, 2): its [start, end) range in ``gr_member`` (cluster ids) and ``gr_off``
+    (a member cluster's centre distance from the super-cluster's centre, rounded up);
+    ``grid`` the shapes' distance grids concatenated, shape k's from ``shape_grid_off[k]``
+    with ``shape_grid_dims`` (k, 3) (0 = none) and ``shape_grid_oh`` (k, 4) (origin, h);
+    ``wall_sign`` -1 for an inverted wall; ``max_hits``: a task's hit buffer size.
+    All home-frame lengths; the bounds are inflated by a relative 1e-12 (+ 1e-15) so that a
+    round-off never makes a culled sphere miss a point it contains."""
     shape_kind: np.ndarray
     shape_rad: np.ndarray
     shape_op: np.ndarray
@@ -75,6 +93,18 @@ class Geometry(NamedTuple):
     cl_rad: np.ndarray
     cl_range: np.ndarray
     probes: np.ndarray
+    probe_off: np.ndarray
+    shape_gr: np.ndarray
+    gr_centre: np.ndarray
+    gr_rad: np.ndarray
+    gr_dist: np.ndarray
+    gr_range: np.ndarray
+    gr_member: np.ndarray
+    gr_off: np.ndarray
+    grid: np.ndarray
+    shape_grid_off: np.ndarray
+    shape_grid_dims: np.ndarray
+    shape_grid_oh: np.ndarray
     wall_op: np.ndarray
     wall_sign: np.ndarray
     wall_lip: np.ndarray
@@ -108,8 +138,13 @@ def scene_shape(node_ints, node_reals, root, shell_points, bounding_radius):
                                   shell_points)
     br = check_float("bounding_radius", bounding_radius, 0.0, lo_open=True)
     br = max(br, float(np.sqrt((shell ** 2).sum(axis=1)).max()))
-    return SceneShape(br, shell.copy(), ni, nr, root, compile_root(ni, nr, root),
-                      bool(b.is_lipschitz(root)))
+    prog = compile_root(ni, nr, root)
+    lip = bool(b.is_lipschitz(root))
+    if lip:
+        grid, dims, oh = distgrid.bake(prog, br)
+    else:
+        grid, dims, oh = np.zeros(0), np.zeros(3, np.int64), np.ones(4)
+    return SceneShape(br, shell.copy(), ni, nr, root, prog, lip, grid, dims, oh)
 
 
 def analytic_wall(node_ints, node_reals, root, invert, e, mu):
@@ -148,25 +183,66 @@ def cluster_probes(points, cell):
             radius)
 
 
+def _up(d):
+    # a distance rounded up, so that bounds built from it are never short by a round-off
+    return d * (1.0 + 1e-12) + 1e-15
+
+
+def group_clusters(centre, radius, cell):
+    """Group clusters (centres (C, 3), radii (C,)) by a voxel grid of size ``cell``.
+
+    Returns (member (C,), group_range (G, 2), group_centre (G, 3), group_radius (G,),
+    offset (C,)): ``member[s:e]`` lists a group's cluster ids (ascending), ``offset[k]`` is
+    the distance of cluster ``member[k]`` from its group's centre (rounded up); a group's
+    sphere contains the spheres of all its clusters."""
+    cen = np.asarray(centre, dtype=np.float64)
+    rad = np.asarray(radius, dtype=np.float64)
+    if len(cen) == 0:
+        return (np.zeros(0, np.int64), np.zeros((0, 2), np.int64), np.zeros((0, 3)),
+                np.zeros(0), np.zeros(0))
+    order, rng, gcen, _ = cluster_probes(cen, cell)
+    off = np.empty(len(cen))
+    grad = np.empty(len(rng))
+    for g, (s, e) in enumerate(rng):
+        m = order[s:e]
+        off[s:e] = _up(np.sqrt(((cen[m] - gcen[g]) ** 2).sum(axis=1)))
+        grad[g] = _up((off[s:e] + rad[m]).max())
+    return order, rng, gcen, grad, off
+
+
 def build_geometry(shapes, walls):
     """The :class:`Geometry` of ``shapes`` (by shape id) and ``walls`` (by wall index)."""
     progs, p0, clr = [], [], []
-    probes, cl_centre, cl_rad, cl_range = [], [], [], []
-    npro = ncl = 0
+    probes, cl_centre, cl_rad, cl_range, probe_off = [], [], [], [], []
+    grr, gr_centre, gr_rad, gr_range, gr_member, gr_off = [], [], [], [], [], []
+    npro = ncl = ngr = 0
     for s in shapes:
         p0.append(npro)
         if isinstance(s, SceneShape):
             progs.append(s.program)
-            order, rng, cen, crad = cluster_probes(s.shell, s.radius * CLUSTER_CELL_FRACTION)
-            probes.append(s.shell[order])
+            cell = s.radius * CLUSTER_CELL_FRACTION
+            order, rng, cen, crad = cluster_probes(s.shell, cell)
+            pts = s.shell[order]
+            probes.append(pts)
+            owner = np.repeat(np.arange(len(rng)), rng[:, 1] - rng[:, 0])
+            probe_off.append(_up(np.sqrt(((pts - cen[owner]) ** 2).sum(axis=1))))
             cl_centre.append(cen)
             cl_rad.append(crad)
             cl_range.append(rng + npro)
             clr.append((ncl, ncl + len(rng)))
+            member, grng, gcen, grad, goff = group_clusters(cen, crad, GROUP_CELLS * cell)
+            gr_member.append(member + ncl)
+            gr_range.append(grng + ncl)
+            gr_centre.append(gcen)
+            gr_rad.append(grad)
+            gr_off.append(goff)
+            grr.append((ngr, ngr + len(grng)))
             npro += len(order)
             ncl += len(rng)
+            ngr += len(grng)
         else:
             clr.append((ncl, ncl))
+            grr.append((ngr, ngr))
     progs.extend(w.program for w in walls)
     if progs:
         ops, lk, lr, ranges = concatenate(progs)
@@ -176,6 +252,8 @@ def build_geometry(shapes, walls):
         lr = np.zeros((1, 24))
         ranges = np.zeros((0, 2), np.int64)
     scene = [isinstance(s, SceneShape) for s in shapes]
+    grids = [s.grid if c else np.zeros(0) for s, c in zip(shapes, scene)]
+    goff = np.concatenate([[0], np.cumsum([len(g) for g in grids])])[:len(shapes)]
     shape_op = np.full((len(shapes), 2), -1, np.int64)
     shape_op[np.asarray(scene, bool)] = np.asarray(ranges[:sum(scene)], np.int64).reshape(-1, 2)
     maxm = max([len(s.shell) for s in shapes if isinstance(s, SceneShape)] + [1])
@@ -190,6 +268,21 @@ def build_geometry(shapes, walls):
         cl_rad=np.concatenate(cl_rad) if cl_rad else np.zeros(0),
         cl_range=np.concatenate(cl_range) if cl_range else np.zeros((0, 2), np.int64),
         probes=np.ascontiguousarray(np.concatenate(probes)) if probes else np.zeros((0, 3)),
+        probe_off=np.concatenate(probe_off) if probe_off else np.zeros(0),
+        shape_gr=np.asarray(grr, np.int64).reshape(-1, 2),
+        gr_centre=np.concatenate(gr_centre) if gr_centre else np.zeros((0, 3)),
+        gr_rad=np.concatenate(gr_rad) if gr_rad else np.zeros(0),
+        gr_dist=(_up(np.sqrt((np.concatenate(gr_centre) ** 2).sum(axis=1))) if gr_centre
+                 else np.zeros(0)),
+        gr_range=np.concatenate(gr_range) if gr_range else np.zeros((0, 2), np.int64),
+        gr_member=np.concatenate(gr_member) if gr_member else np.zeros(0, np.int64),
+        gr_off=np.concatenate(gr_off) if gr_off else np.zeros(0),
+        grid=np.concatenate(grids) if grids else np.zeros(0),
+        shape_grid_off=np.asarray(goff, np.int64),
+        shape_grid_dims=np.array([s.grid_dims if c else np.zeros(3, np.int64)
+                                  for s, c in zip(shapes, scene)], np.int64).reshape(-1, 3),
+        shape_grid_oh=np.array([s.grid_oh if c else np.ones(4) for s, c in zip(shapes, scene)],
+                               np.float64).reshape(-1, 4),
         wall_op=np.asarray(ranges[sum(scene):], np.int64).reshape(-1, 2),
         wall_sign=np.array([-1.0 if w.invert else 1.0 for w in walls]),
         wall_lip=np.array([w.lip for w in walls], np.bool_),

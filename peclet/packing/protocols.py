@@ -215,7 +215,8 @@ class RainProtocol:
 
     def estimate_steps(self, count):
         """A rough total for the progress bar (the KE criterion decides the real one)."""
-        return (math.ceil(count / self.batch) * self.insert_every + 1500
+        fall = math.sqrt(2.0 * self.drop / G) / self.dt
+        return int(math.ceil(count / self.batch) * self.insert_every + fall + 1500
                 + self.taps * (self.tap_steps + 1500) + self.quench_steps)
 
     def start(self, ctx, rng):
