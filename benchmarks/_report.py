@@ -4,7 +4,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import tempfile
 import time
 from pathlib import Path
 
@@ -21,14 +20,19 @@ def machine() -> dict:
 
 def write(name: str, payload: dict) -> Path:
     """Write ``payload`` (plus machine info) to results/<name>.json atomically."""
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    path = RESULTS / f"{name}.json"
-    payload = {"machine": machine(), **payload}
-    fd, tmp = tempfile.mkstemp(dir=RESULTS, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(payload, f, indent=2, default=float)
-    os.replace(tmp, path)
-    return path
+    return write_json(RESULTS / f"{name}.json", {"machine": machine(), **payload})
+
+
+def write_json(path, data) -> Path:
+    """``data`` as indented JSON at ``path``, atomically (peclet.core.files.atomic_write)."""
+    from peclet.core.files import atomic_write
+
+    def dump(tmp):
+        with open(tmp, "w") as f:
+            json.dump(data, f, indent=2, default=float)
+
+    atomic_write(path, dump)
+    return Path(path)
 
 
 def table(rows, headers) -> str:

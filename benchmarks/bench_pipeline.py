@@ -78,9 +78,10 @@ def main():
                    runs=[{k: v for k, v in r.items() if k != "results"} for r in runs],
                    checks=checks, targets=dict(cold_s=120, warm_s=90))
     dst = ROOT / "benchmarks" / "results" / "pipeline.json"
-    tmp = dst.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(summary, indent=1))
-    os.replace(tmp, dst)
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from _report import write_json
+
+    write_json(dst, summary)
     print(f"\nwrote {dst}")
 
 

@@ -28,6 +28,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from peclet.core.geom import LEAF_NAMES, LEAVES_BY_NAME, SceneBuilder
+from peclet.core.geom.transforms import quat_to_matrix
 
 __all__ = ["Transform", "LeafCall", "OpCall", "TreeRecipe", "RigidState", "BOUNDED_KINDS",
            "EXACT_KINDS", "LIPSCHITZ_KINDS", "OPERATORS", "leaf_params", "leaves", "transforms",
@@ -70,7 +71,7 @@ class Transform:
         """The transform T^-1 with T^-1(T(p)) = p."""
         x, y, z, w = self.rotation
         qi = (-x, -y, -z, w)
-        R = _quat_matrix(qi)
+        R = quat_to_matrix(np.array(qi, dtype=np.float64))
         t = -(R @ np.asarray(self.translation)) / self.scale
         return Transform(tuple(float(v) for v in t), tuple(float(v) for v in qi),
                          1.0 / self.scale)
@@ -194,13 +195,6 @@ def _depth(node) -> int:
     if isinstance(node, LeafCall):
         return 0
     return 1 + max(_depth(node.left), _depth(node.right))
-
-
-def _quat_matrix(q):
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 # ---------------------------------------------------------------------------- validation

@@ -24,6 +24,7 @@ import numpy as np
 
 from peclet.core import geom
 from peclet.core.files import atomic_write, check_writable_path
+from peclet.core.geom.transforms import quats_to_matrices
 from peclet.core.validation import PecletArgumentError, check_array, check_float, check_int
 
 # atomic_write is re-exported for code that imported it from here before it moved to core
@@ -150,19 +151,9 @@ class Pack:
 
 
 def rotation_matrices(q) -> np.ndarray:
-    """(N, 3, 3) rotation matrices of unit quaternions ``q`` (N, 4), (x, y, z, w), active."""
-    x, y, z, w = np.asarray(q, dtype=np.float64).T
-    R = np.empty((len(x), 3, 3))
-    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    R[:, 0, 1] = 2 * (x * y - z * w)
-    R[:, 0, 2] = 2 * (x * z + y * w)
-    R[:, 1, 0] = 2 * (x * y + z * w)
-    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    R[:, 1, 2] = 2 * (y * z - x * w)
-    R[:, 2, 0] = 2 * (x * z - y * w)
-    R[:, 2, 1] = 2 * (y * z + x * w)
-    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
+    """(N, 3, 3) rotation matrices of unit quaternions ``q`` (N, 4), (x, y, z, w), active
+    (the core's :func:`~peclet.core.geom.transforms.quats_to_matrices`)."""
+    return quats_to_matrices(np.ascontiguousarray(q, dtype=np.float64).reshape(-1, 4))
 
 
 def _int_array(name, value, shape):
