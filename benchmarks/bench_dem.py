@@ -124,16 +124,15 @@ def main():
           f"<= 20 ms/step (48 rings, 2 threads, two-way), <= 400 ms/step (1000 rings).")
     print("""
 Where the time goes. The narrow phase is the cost: for every candidate pair it maps each
-ring's ~1200 probes into the other ring's frame and evaluates the 21-node tree there, BOTH ways.
-Two things keep it bounded: probes are grouped in voxel clusters with a bounding sphere, and
-since the ring's field is 1-Lipschitz a cluster whose centre is farther from the other tree
-than its radius (+ margin) is skipped after ONE evaluation, so only the clusters straddling the
-contact zone are evaluated probe by probe; and the manifold reduction keeps <= 16 points per
-pair, so the serial PGS sweeps few contacts. What remains is irreducible without changing the
-model: a tree evaluation (13 leaves, a transform each) per probe near a contact, for every
-touching pair, every step. The broad phase (cell list) and the solver are small; "other" is
-the Python glue of the step (array bookkeeping, the warm-start match), ~1 ms. On this shared
-2-core machine a parallel launch costs milliseconds when other jobs hold the cores, so the
+ring's ~1200 probes into the other ring's frame, BOTH ways, and evaluates the 21-node tree at
+those near contact. What keeps it bounded: a distance grid baked per shape at registration
+gives a certified lower bound of phi for one array read (phi is 1-Lipschitz), tested at the
+body, at super-clusters and clusters of probes (bounding spheres) and at each probe, so only
+probes within the margin of the other surface (plus one grid cell) reach the exact tree; the
+hits are identical to evaluating every probe. The manifold reduction keeps <= 16 points per
+pair, so the serial PGS sweeps few contacts. The broad phase (cell list) and the solver are
+small; "other" is the Python glue of the step (array bookkeeping, the warm-start match). On this
+shared 2-core machine a parallel launch costs milliseconds when other jobs hold the cores, so the
 2-thread figure can be no better than the 1-thread one; the results are bitwise identical.""")
     os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
     out = os.path.join(HERE, "results", "dem.json")

@@ -16,6 +16,8 @@ import math
 import os
 import sys
 
+from .options import add_bed_options
+
 __all__ = ["add_parser", "run"]
 
 #: Optional fixed values: CLI flag -> PackSpec field.
@@ -31,12 +33,7 @@ def add_parser(sub):
                         "LocalCluster or --scheduler) and summarise eps, f_env and Z per "
                         "sweep point (mean, standard error, 95% interval).")
     pr.set_defaults(func=run)
-    pr.add_argument("--element", default="pall_ring", help="library element (default "
-                    "pall_ring)")
-    pr.add_argument("--container", default="box:3.5",
-                    help="box:L | column:N | walled:Lx,Lz, in element diameters (default "
-                    "box:3.5)")
-    pr.add_argument("--protocol", default="page", help="page | rain (default page)")
+    add_bed_options(pr)
     pr.add_argument("--seeds", required=True,
                     help="start-cloud seeds: e.g. 1-32 or 1-4,10 (integers >= 0)")
     pr.add_argument("--sweep", action="append", default=None, metavar="KEY=V1,V2,...",

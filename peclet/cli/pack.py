@@ -17,7 +17,10 @@ import os
 import shutil
 import sys
 
+from peclet.core.files import check_output_dir, clear_outputs
 from peclet.core.validation import PecletArgumentError, check_float, check_int
+
+from .options import add_bed_options
 
 __all__ = ["add_parser", "run", "OUTPUTS"]
 
@@ -32,14 +35,8 @@ def add_parser(sub):
                        "deposition), analyse the bed and write pack.npz, results.json, "
                        "figures and exports into --out.")
     p.set_defaults(func=run)
-    p.add_argument("--element", default="pall_ring",
-                   help="library element (pall_ring, raschig_ring, berl_saddle, "
-                        "intalox_saddle, sphere, solid_cylinder) or a flat-encoding .npz")
-    p.add_argument("--container", default="box:3.5",
-                   help="box:L (periodic) | column:N (diameter N D) | walled:Lx,Lz, in element "
-                        "diameters D (default box:3.5, the page's)")
+    add_bed_options(p)
     p.add_argument("--count", default="48", help="number of elements (default 48)")
-    p.add_argument("--protocol", default="page", help="page | rain (default page)")
     p.add_argument("--mu", default="0.5", help="element-element friction (default 0.5)")
     p.add_argument("--wall-mu", default=None, help="wall friction (default: --mu)")
     p.add_argument("--restitution", default="0.15", help="normal restitution (default 0.15)")
@@ -93,36 +90,10 @@ def _renamed(exc, flag):
 
 
 def _check_out(out, overwrite, resuming_from=None):
-    """--out must be a writable directory path holding no other run's outputs."""
-    p = os.path.abspath(out)
-    if os.path.exists(p) and not os.path.isdir(p):
-        raise PecletArgumentError("--out", "a directory", out, "it is a file")
-    probe = p
-    while not os.path.exists(probe):
-        probe = os.path.dirname(probe)
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise PecletArgumentError("--out", "a writable directory", out,
-                                  f"{probe} is not writable")
-    if os.path.isdir(p) and not overwrite:
-        ours = [f for f in OUTPUTS if os.path.exists(os.path.join(p, f))]
-        if resuming_from is not None:
-            ours = [f for f in ours if os.path.join(p, f) != os.path.abspath(resuming_from)]
-        if ours:
-            raise PecletArgumentError("--out", "a directory without another run's outputs "
-                                      "(or pass --overwrite)", out,
-                                      f"it holds {', '.join(ours)}")
-    return p
-
-
-def _clear(out, keep=None):
-    for f in OUTPUTS:
-        q = os.path.join(out, f)
-        if keep is not None and os.path.abspath(q) == os.path.abspath(keep):
-            continue
-        if os.path.isdir(q):
-            shutil.rmtree(q)
-        elif os.path.exists(q):
-            os.remove(q)
+    """(absolute --out, an earlier run's outputs in it) after the shared output-directory
+    checks; a resumed run's own checkpoint does not count as another run's."""
+    return check_output_dir(out, OUTPUTS, overwrite, "--out", dirs=("checkpoint",),
+                            keep=(resuming_from,))
 
 
 def run(args):
@@ -141,14 +112,14 @@ def run(args):
                                       "run's --out or its checkpoint/)", args.resume)
         base = os.path.dirname(os.path.abspath(cdir)) \
             if os.path.basename(os.path.abspath(cdir)) == "checkpoint" else cdir
-        out = _check_out(args.out or base, args.overwrite, resuming_from=cdir)
+        out, previous = _check_out(args.out or base, args.overwrite, resuming_from=cdir)
         try:
             api._check_run_args(1, 0, threads, not args.quiet, None, None, None)
             res = api.resume(cdir, progress=not args.quiet, threads=threads,
                              checkpoint_every=every)
         except PecletArgumentError as exc:
             raise _renamed(exc, "--resume") from None
-        return _finish(res, out, args, cdir)
+        return _finish(res, out, args, cdir, previous)
 
     # ---- every check before the element is built
     count = _num("--count", args.count, int, lo=1)
@@ -168,7 +139,7 @@ def run(args):
             parse(value)
         except PecletArgumentError as exc:
             raise _renamed(exc, flag) from None
-    out = _check_out(args.out or "pack_results", args.overwrite)
+    out, previous = _check_out(args.out or "pack_results", args.overwrite)
     batch = _num("--batch", args.batch, int, lo=1)
     every_k = _num("--insert-every", args.insert_every, int, lo=1)
     drop = _num("--drop", args.drop, float, lo=0.0)
@@ -190,16 +161,17 @@ def run(args):
         if flag is None:
             raise
         raise _renamed(exc, flag) from None
-    return _finish(res, out, args, cdir)
+    return _finish(res, out, args, cdir, previous)
 
 
-def _finish(res, out, args, cdir):
+def _finish(res, out, args, cdir, previous):
     from peclet.packing import report as bed_report
     from peclet.packing.freeze import save_pack
 
     os.makedirs(out, exist_ok=True)
-    if args.overwrite:                 # no figure of the old run left beside the new results
-        _clear(out, keep=cdir)
+    # no figure of the old run left beside the new results (its checkpoint went before the
+    # run; the one this run wrote is handled below)
+    clear_outputs(out, tuple(f for f in previous if f != "checkpoint"))
     save_pack(os.path.join(out, "pack.npz"), res.pack)
     report = bed_report.analyse(res, out, figures=not args.no_figures,
                                 exports=not args.no_figures, samples=args.samples,

@@ -14,9 +14,14 @@ stored normal always points from b to a (it pushes a away from b). ``gap`` is th
 separation (< 0 is a penetration of depth -gap); the contact point is midway between the two
 surfaces. Hits within ``margin`` are kept (speculative contacts).
 
-Probes are grouped into clusters with a bounding sphere. When the tree's field is 1-Lipschitz,
-a whole cluster is skipped if phi at its centre exceeds its radius plus the margin; this
-removes most evaluations and never changes the result (a skipped probe cannot be a hit).
+Probes are grouped into clusters with a bounding sphere, clusters into super-clusters. When the
+tree's field is 1-Lipschitz, phi grows by at most the distance travelled, so a lower bound of
+phi at a sphere's centre minus its radius bounds every point inside: the body, a super-cluster,
+a cluster or a single probe is skipped once that bound exceeds the margin. The bounds come from
+the tree's distance grid (:mod:`peclet.dem.distgrid`, one array read), or one evaluation where
+a tree has no grid (walls), or the enclosing level's bound minus the offset. Only the probes
+that survive are evaluated on the exact tree; a skipped probe cannot be a hit, and the hits are
+put back in probe order, so the contacts are bit for bit those of evaluating every probe.
 
 Manifold reduction (so that a pair's impulse does not depend on how many probes happen to be
 inside): hits are grouped by normal direction (at most ``MAX_CLUSTERS`` groups, each seeded by
@@ -24,8 +29,8 @@ its deepest remaining hit), and each group keeps at most four points: the deepes
 farthest from it in the contact plane, and the two extremes on either side of that line.
 A task therefore writes at most ``MAX_PER_TASK`` contacts, into its own slots.
 
-Determinism: tasks run in parallel over fixed-size chunks, every task writes only its own
-slots; all choices break ties by the lowest index.
+Determinism: tasks run in parallel (fixed-size chunks dealt to a fixed number of workers),
+every task writes only its own slots; all choices break ties by the lowest index.
 """
 from __future__ import annotations
 
@@ -46,6 +51,8 @@ CLUSTER_COS = 0.8
 #: Feature ids of the second direction (b's probes in a's tree) are offset by this.
 FEATURE_DIR = 1 << 24
 TASK_CHUNK = 8
+#: Parallel workers (each takes every WORKERS-th chunk): enough to even out 2..16 threads.
+WORKERS = 32
 
 # hit row layout
 _HX, _HN, _HG, _HF = 0, 3, 6, 7
@@ -297,9 +304,12 @@ def _reduce(hits, nh, lab, reps, tol2, touch, base, out_point, out_normal, out_g
 
 
 @njit(cache=True)
-def _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots):
-    """Tasks [ch * size, (ch + 1) * size): gather each task's hits, reduce them into its
-    own slots."""
+def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots):
+    """Worker ``worker`` of ``nw``: the chunks worker, worker + nw, ... of ``size`` tasks (interleaved, so
+    that the workers' loads even out); gathers each task's hits and reduces them into its own
+    slots. The scratch buffers are allocated once per worker: a task's hit buffer is large
+    enough for every probe of both bodies, and allocating it per chunk cost a page-mapping
+    system call each time, which serialised the threads."""
     # the tables are taken out of the tuple once: a field read in the per-probe loop would
     # cost a reference-count update per read
     shape_kind, shape_rad, shape_op = geo.shape_kind, geo.shape_rad, geo.shape_op
@@ -313,92 +323,95 @@ def _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots)
     xb = np.empty(3)
     ident = np.eye(3)
     origin = np.zeros(3)
-    for t in range(ch * size, min(tasks.a.shape[0], (ch + 1) * size)):
-        a = tasks.a[t]
-        b = tasks.b[t]
-        sa = shape_of[a]
-        xa = pos[a]
-        Ra = rot[a]
-        nh = 0
-        if b >= 0:
-            sb = shape_of[b]
-            for e in range(3):
-                xb[e] = pos[b, e] + tasks.shift[t, e]
-            Rb = rot[b]
-            if shape_kind[sa] == 0 and shape_kind[sb] == 0:
-                dx = xa[0] - xb[0]
-                dy = xa[1] - xb[1]
-                dz = xa[2] - xb[2]
-                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                gap = dist - shape_rad[sa] - shape_rad[sb]
-                if gap < margin:
-                    if dist > 0.0:
-                        nx = dx / dist
-                        ny = dy / dist
-                        nz = dz / dist
-                    else:
-                        nx, ny, nz = 0.0, 1.0, 0.0
-                    h = shape_rad[sa] + 0.5 * gap
-                    hits[0, 0] = xa[0] - h * nx
-                    hits[0, 1] = xa[1] - h * ny
-                    hits[0, 2] = xa[2] - h * nz
-                    hits[0, 3] = nx
-                    hits[0, 4] = ny
-                    hits[0, 5] = nz
-                    hits[0, 6] = gap
-                    hits[0, 7] = 0.0
-                    nh = 1
-            elif shape_kind[sa] == 0:
-                nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb,
-                                    shape_op[sb, 0], shape_op[sb, 1], 1.0, shape_rad[sb],
-                                    1.0, 0, margin, ops, lk, lr, grid, goff[sb], gdims[sb],
-                                    goh[sb], st, hits, nh)
-            elif shape_kind[sb] == 0:
-                nh = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra,
-                                    shape_op[sa, 0], shape_op[sa, 1], 1.0, shape_rad[sa],
-                                    -1.0, FEATURE_DIR, margin, ops, lk, lr, grid, goff[sa],
-                                    gdims[sa], goh[sa], st, hits, nh)
-            else:
-                # a bound at each centre covers the whole shape: many candidate pairs of a
-                # settled bed are neighbours that do not touch
-                gd = gdims[sb]
-                gh = goh[sb]
-                phr = _sphere_bound(xa, Ra, origin, shape_rad[sa], xb, Rb, shape_op[sb, 0],
-                                    shape_op[sb, 1], 1.0, geo.shape_lip[sb], shape_rad[sb],
-                                    margin, ops, lk, lr, grid, goff[sb], gd, gh, st)
-                nh = _probes_vs_tree(xa, Ra, sa, geo, xb, Rb, shape_op[sb, 0], shape_op[sb, 1],
-                                     1.0, geo.shape_lip[sb], shape_rad[sb], 1.0, 0, margin,
-                                     phr, grid, goff[sb], gd, gh, st, hits, nh)
-                gd = gdims[sa]
-                gh = goh[sa]
-                phr = _sphere_bound(xb, Rb, origin, shape_rad[sb], xa, Ra, shape_op[sa, 0],
-                                    shape_op[sa, 1], 1.0, geo.shape_lip[sa], shape_rad[sa],
-                                    margin, ops, lk, lr, grid, goff[sa], gd, gh, st)
-                nh = _probes_vs_tree(xb, Rb, sb, geo, xa, Ra, shape_op[sa, 0], shape_op[sa, 1],
-                                     1.0, geo.shape_lip[sa], shape_rad[sa], -1.0, FEATURE_DIR,
-                                     margin, phr, grid, goff[sa], gd, gh, st, hits, nh)
-        else:
-            w = -1 - b
-            sg = geo.wall_sign[w]
-            o0 = geo.wall_op[w, 0]
-            o1 = geo.wall_op[w, 1]
-            skip = False
-            phc = -np.inf
-            if geo.wall_lip[w]:
-                # whole-body cull: phi is 1-Lipschitz and the body lies within its radius
-                phc = sg * eval_point(ops, lk, lr, o0, o1, xa[0], xa[1], xa[2], st)[0]
-                skip = phc > shape_rad[sa] + margin
-            if not skip:
-                if shape_kind[sa] == 0:
-                    nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], origin, ident,
-                                        o0, o1, sg, np.inf, 1.0, 0, margin, ops, lk, lr, grid,
-                                        0, nogrid, origin, st, hits, nh)
+    ntask = tasks.a.shape[0]
+    nchunk = (ntask + size - 1) // size
+    for ch in range(worker, nchunk, nw):
+        for t in range(ch * size, min(ntask, (ch + 1) * size)):
+            a = tasks.a[t]
+            b = tasks.b[t]
+            sa = shape_of[a]
+            xa = pos[a]
+            Ra = rot[a]
+            nh = 0
+            if b >= 0:
+                sb = shape_of[b]
+                for e in range(3):
+                    xb[e] = pos[b, e] + tasks.shift[t, e]
+                Rb = rot[b]
+                if shape_kind[sa] == 0 and shape_kind[sb] == 0:
+                    dx = xa[0] - xb[0]
+                    dy = xa[1] - xb[1]
+                    dz = xa[2] - xb[2]
+                    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                    gap = dist - shape_rad[sa] - shape_rad[sb]
+                    if gap < margin:
+                        if dist > 0.0:
+                            nx = dx / dist
+                            ny = dy / dist
+                            nz = dz / dist
+                        else:
+                            nx, ny, nz = 0.0, 1.0, 0.0
+                        h = shape_rad[sa] + 0.5 * gap
+                        hits[0, 0] = xa[0] - h * nx
+                        hits[0, 1] = xa[1] - h * ny
+                        hits[0, 2] = xa[2] - h * nz
+                        hits[0, 3] = nx
+                        hits[0, 4] = ny
+                        hits[0, 5] = nz
+                        hits[0, 6] = gap
+                        hits[0, 7] = 0.0
+                        nh = 1
+                elif shape_kind[sa] == 0:
+                    nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb,
+                                        shape_op[sb, 0], shape_op[sb, 1], 1.0, shape_rad[sb],
+                                        1.0, 0, margin, ops, lk, lr, grid, goff[sb], gdims[sb],
+                                        goh[sb], st, hits, nh)
+                elif shape_kind[sb] == 0:
+                    nh = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra,
+                                        shape_op[sa, 0], shape_op[sa, 1], 1.0, shape_rad[sa],
+                                        -1.0, FEATURE_DIR, margin, ops, lk, lr, grid, goff[sa],
+                                        gdims[sa], goh[sa], st, hits, nh)
                 else:
-                    nh = _probes_vs_tree(xa, Ra, sa, geo, origin, ident, o0, o1, sg,
-                                         geo.wall_lip[w], np.inf, 1.0, 0, margin, phc, grid, 0,
-                                         nogrid, origin, st, hits, nh)
-        slots.count[t] = _reduce(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
-                                 slots.point, slots.normal, slots.gap, slots.feat)
+                    # a bound at each centre covers the whole shape: many candidate pairs of a
+                    # settled bed are neighbours that do not touch
+                    gd = gdims[sb]
+                    gh = goh[sb]
+                    phr = _sphere_bound(xa, Ra, origin, shape_rad[sa], xb, Rb, shape_op[sb, 0],
+                                        shape_op[sb, 1], 1.0, geo.shape_lip[sb], shape_rad[sb],
+                                        margin, ops, lk, lr, grid, goff[sb], gd, gh, st)
+                    nh = _probes_vs_tree(xa, Ra, sa, geo, xb, Rb, shape_op[sb, 0], shape_op[sb, 1],
+                                         1.0, geo.shape_lip[sb], shape_rad[sb], 1.0, 0, margin,
+                                         phr, grid, goff[sb], gd, gh, st, hits, nh)
+                    gd = gdims[sa]
+                    gh = goh[sa]
+                    phr = _sphere_bound(xb, Rb, origin, shape_rad[sb], xa, Ra, shape_op[sa, 0],
+                                        shape_op[sa, 1], 1.0, geo.shape_lip[sa], shape_rad[sa],
+                                        margin, ops, lk, lr, grid, goff[sa], gd, gh, st)
+                    nh = _probes_vs_tree(xb, Rb, sb, geo, xa, Ra, shape_op[sa, 0], shape_op[sa, 1],
+                                         1.0, geo.shape_lip[sa], shape_rad[sa], -1.0, FEATURE_DIR,
+                                         margin, phr, grid, goff[sa], gd, gh, st, hits, nh)
+            else:
+                w = -1 - b
+                sg = geo.wall_sign[w]
+                o0 = geo.wall_op[w, 0]
+                o1 = geo.wall_op[w, 1]
+                skip = False
+                phc = -np.inf
+                if geo.wall_lip[w]:
+                    # whole-body cull: phi is 1-Lipschitz and the body lies within its radius
+                    phc = sg * eval_point(ops, lk, lr, o0, o1, xa[0], xa[1], xa[2], st)[0]
+                    skip = phc > shape_rad[sa] + margin
+                if not skip:
+                    if shape_kind[sa] == 0:
+                        nh = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], origin, ident,
+                                            o0, o1, sg, np.inf, 1.0, 0, margin, ops, lk, lr, grid,
+                                            0, nogrid, origin, st, hits, nh)
+                    else:
+                        nh = _probes_vs_tree(xa, Ra, sa, geo, origin, ident, o0, o1, sg,
+                                             geo.wall_lip[w], np.inf, 1.0, 0, margin, phc, grid, 0,
+                                             nogrid, origin, st, hits, nh)
+            slots.count[t] = _reduce(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
+                                     slots.point, slots.normal, slots.gap, slots.feat)
 
 
 @njit(cache=True, parallel=True)
@@ -410,14 +423,9 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, sl
     :class:`peclet.dem.shapes.Geometry`; hits within ``margin`` are kept; ``tol2`` and ``touch``
     tune the manifold reduction; ``slots`` a :class:`Slots`. ``chunks`` = 1 runs serially in
     the calling thread (small problems, where a parallel launch costs more than it saves),
-    otherwise fixed-size chunks of TASK_CHUNK tasks run in parallel. Either way every task
-    writes only its own slots, so the result is identical."""
-    ntask = tasks.a.shape[0]
-    size = TASK_CHUNK if chunks > 1 else max(ntask, 1)
-    nchunk = (ntask + size - 1) // size
-    if chunks > 1:
-        for ch in prange(nchunk):
-            _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots)
-    else:
-        for ch in range(nchunk):
-            _chunk(ch, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots)
+    otherwise WORKERS workers run in parallel, each taking every WORKERS-th chunk of
+    TASK_CHUNK tasks. Either way every task writes only its own slots, so the result is
+    identical."""
+    nw = WORKERS if chunks > 1 else 1
+    for k in prange(nw):
+        _worker(k, nw, TASK_CHUNK, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots)

@@ -14,15 +14,12 @@ nothing else in OUT is ever deleted or overwritten).
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
-import tempfile
 
-import numpy as np
 
 # the umask-respecting mode of a new directory, as atomic_write gives new files
-from peclet.core.files import _umask, atomic_write, check_writable_path
+from peclet.core.files import atomic_directory, check_writable_path, jsonable, write_json
 from peclet.core.validation import PecletArgumentError
 
 __all__ = ["Ledger", "jsonable"]
@@ -31,29 +28,8 @@ MANIFEST = "ensemble.json"
 _PART = ".peclet-part-"
 
 
-def jsonable(x):
-    """``x`` with numpy scalars/arrays as Python numbers/lists and non-finite floats as None."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (np.integer, int)):
-        return int(x)
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(float(x)) else None
-    return x
-
-
 def _write_json(path, obj):
-    def write(tmp):
-        with open(tmp, "w") as fh:
-            json.dump(jsonable(obj), fh, indent=1, sort_keys=True)
-            fh.write("\n")
-    return atomic_write(path, write)
+    return write_json(path, obj, sort_keys=True)
 
 
 class Ledger:
@@ -145,20 +121,12 @@ class Ledger:
 
         self.prepare()
         final = self.path(spec)
-        tmp = tempfile.mkdtemp(prefix=f"{_PART}{spec.id}-", dir=self.out)
-        try:
+
+        def fill(tmp):
             save_pack(os.path.join(tmp, "pack.npz"), pack)
             _write_json(os.path.join(tmp, "results.json"), result)
-            os.chmod(tmp, 0o777 & ~_umask())
-            try:
-                os.rename(tmp, final)
-            except OSError:
-                if not os.path.isdir(final):
-                    raise
-                shutil.rmtree(tmp, ignore_errors=True)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
+
+        atomic_directory(final, fill, prefix=_PART)
         return final
 
     def write_json(self, name, obj):

@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
+from peclet.core import files
 from peclet.core.files import atomic_write
 
-from .ledger import jsonable
 
 __all__ = ["summarize", "write_csv", "write_json", "write_figure", "LABELS", "CONFIDENCE"]
 
@@ -86,16 +86,9 @@ def write_csv(path, points):
 
 def write_json(path, points, swept=(), extra=None):
     """The summary as JSON ({confidence, swept, points, ...extra}; NaN as null), atomically."""
-    import json
-
     doc = dict(confidence=CONFIDENCE, interval="Student t on the mean over seeds",
                swept=list(swept), points=points, **(extra or {}))
-
-    def write(tmp):
-        with open(tmp, "w") as fh:
-            json.dump(jsonable(doc), fh, indent=1)
-            fh.write("\n")
-    return atomic_write(path, write)
+    return files.write_json(path, doc)
 
 
 def write_figure(path, points, rows, swept=()):

@@ -161,7 +161,7 @@ def element_model(el: Element, build=None):
     from peclet.core.geom.transforms import quat_to_matrix
     from peclet.dem import scene_particle
 
-    from .pipeline import _home_transform
+    from .elements import home_transform
 
     kw = dict(BUILD, **(build or {}))
     ni, nr, _, _ = el.builder.encode()
@@ -180,7 +180,7 @@ def element_model(el: Element, build=None):
         sp = scene_particle.build(el.builder, el.root, bounds=el.bounds, **kw)
         b = geom.SceneBuilder.decode(sp.node_ints, sp.node_reals)
         env = -1
-        tq, qq, sq = _home_transform(b, el.root, sp.home_root)
+        tq, qq, sq = home_transform(b, el.root, sp.home_root)
         axis = quat_to_matrix(qq) @ np.asarray(el.axis, float)
         if el.envelope_root is not None:
             env = b.add_reframed(el.envelope_root, translation=tq, rotation=qq, scale=sq)

@@ -19,11 +19,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 
 import numpy as np
 
-from peclet.core.files import atomic_write
+from peclet.core.files import atomic_directory, atomic_write, write_json
 from peclet.core.validation import PecletArgumentError
 
 __all__ = ["POINTER", "is_checkpoint", "init", "write", "read"]
@@ -36,13 +35,6 @@ def is_checkpoint(path):
     """Whether ``path`` is a directory holding a pack checkpoint's pointer and spec."""
     p = os.fspath(path)
     return os.path.isfile(os.path.join(p, POINTER)) and os.path.isfile(os.path.join(p, "spec.json"))
-
-
-def _write_json(path, obj):
-    def w(tmp):
-        with open(tmp, "w") as fh:
-            json.dump(obj, fh, indent=1)
-    atomic_write(path, w)
 
 
 def init(path, spec, element):
@@ -58,7 +50,7 @@ def init(path, spec, element):
         with open(tmp, "wb") as fh:
             np.savez(fh, **element)
     atomic_write(os.path.join(p, "element.npz"), w)
-    _write_json(os.path.join(p, "spec.json"), dict(kind=_KIND, spec=spec))
+    write_json(os.path.join(p, "spec.json"), dict(kind=_KIND, spec=spec))
 
 
 def write(path, sim, state):
@@ -70,17 +62,13 @@ def write(path, sim, state):
         if old.startswith(".tmp-ckpt-"):
             shutil.rmtree(os.path.join(p, old), ignore_errors=True)
     if not os.path.isdir(final):
-        tmp = tempfile.mkdtemp(prefix=".tmp-ckpt-", dir=p)
-        try:
+        def fill(tmp):
             sim.save(os.path.join(tmp, "sim.npz"))
-            with open(os.path.join(tmp, "state.json"), "w") as fh:
-                json.dump(state.to_json(), fh)
+            write_json(os.path.join(tmp, "state.json"), state.to_json())
             np.save(os.path.join(tmp, "ke.npy"), np.asarray(state.ke, dtype=np.float64))
-            os.rename(tmp, final)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-    _write_json(os.path.join(p, POINTER), dict(kind=_KIND, latest=name, step=state.step))
+
+        atomic_directory(final, fill, prefix=".tmp-ckpt-")
+    write_json(os.path.join(p, POINTER), dict(kind=_KIND, latest=name, step=state.step))
     for old in os.listdir(p):
         if old.startswith("ckpt-") and old != name:
             shutil.rmtree(os.path.join(p, old), ignore_errors=True)
@@ -121,4 +109,4 @@ def read(path, name="checkpoint_dir"):
 
 def mark_started(path):
     """Point ``checkpoint.json`` at no step yet (a run that starts from its beginning)."""
-    _write_json(os.path.join(os.fspath(path), POINTER), dict(kind=_KIND, latest=None, step=0))
+    write_json(os.path.join(os.fspath(path), POINTER), dict(kind=_KIND, latest=None, step=0))

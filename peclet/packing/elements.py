@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from peclet.core import geom
+from peclet.core.geom.transforms import compose, quat_to_matrix
 
 __all__ = ["Element", "pall_ring", "raschig_ring", "berl_saddle", "intalox_saddle", "sphere",
            "solid_cylinder", "ELEMENTS", "qy"]
@@ -74,6 +75,16 @@ class Element:
 def qy(a):
     """Quaternion (x, y, z, w) of a rotation by angle ``a`` (radians) about +y."""
     return [0.0, float(np.sin(0.5 * a)), 0.0, float(np.cos(0.5 * a))]
+
+
+def home_transform(builder, root, home_root):
+    """(t, q, s): the transform that carries the authoring frame of ``root`` to the home
+    (principal) frame of ``home_root``, a reframed copy of it (home = outer ∘ own)."""
+    _, _, _, _, t0, q0, s0 = builder.node(root)
+    _, _, _, _, t1, q1, s1 = builder.node(home_root)
+    inv_q0 = np.array([-q0[0], -q0[1], -q0[2], q0[3]])
+    inv = (-(quat_to_matrix(inv_q0) @ t0) / s0, inv_q0, 1.0 / s0)
+    return compose((t1, q1, s1), inv)
 
 
 # ---------------------------------------------------------------------- validation helpers

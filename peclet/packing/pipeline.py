@@ -10,18 +10,17 @@ Units: the ring's outer diameter D = 1; time in the page's units (g = 9.81).
 """
 from __future__ import annotations
 
-import json
-import math
 import os
 import time
 
 import numpy as np
 
-from peclet.core.files import atomic_write
+from peclet.core.files import atomic_write, write_json
 from peclet.core.geom.mesh import surface_mesh
-from peclet.core.geom.transforms import compose, quat_to_matrix
+from peclet.core.geom.transforms import quat_to_matrix
 
 from . import analysis, elements, figures
+from .elements import home_transform
 from .freeze import Pack, save_pack
 from .pipeline_checks import OUTPUTS, check_run, clear_outputs, set_threads
 from .pour import pour
@@ -37,15 +36,6 @@ PAGE = dict(cert_violating=0.0, sign_exact_violating=0.2468, sign_exact_worst=0.
             eps_thin=0.957, eps_thick=0.743, runtime_s=346.0)
 
 SWEEP_T = (0.024, 0.04, 0.06, 0.08, 0.12, 0.16)
-
-
-def _home_transform(builder, root, home_root):
-    """The transform that carries the authoring frame to the home frame: home = outer ∘ own."""
-    _, _, _, _, t0, q0, s0 = builder.node(root)
-    _, _, _, _, t1, q1, s1 = builder.node(home_root)
-    inv_q0 = np.array([-q0[0], -q0[1], -q0[2], q0[3]])
-    inv = (-(quat_to_matrix(inv_q0) @ t0) / s0, inv_q0, 1.0 / s0)
-    return compose((t1, q1, s1), inv)
 
 
 #: Contact test gap (in D) for coordination. The page counted a probe strictly inside the
@@ -133,7 +123,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
             raise ValueError("particle must be built on the builder of elements.pall_ring()")
         b = type(b).decode(sp.node_ints, sp.node_reals)
     timing["scene_particle"] = time.perf_counter() - t
-    tq, qq, sq = _home_transform(b, root, sp.home_root)
+    tq, qq, sq = home_transform(b, root, sp.home_root)
     env_home = b.add_reframed(ring.envelope_root, translation=tq, rotation=qq, scale=sq)
     axis_home = quat_to_matrix(qq) @ np.array([0.0, 1.0, 0.0])
     d_nn, _ = cKDTree(sp.shell).query(sp.shell, k=2)
@@ -236,28 +226,10 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     timing["total"] = time.perf_counter() - T0
     res["timing"] = timing
 
-    def write(tmp):
-        with open(tmp, "w") as fh:
-            json.dump(_jsonable(res), fh, indent=1)
-    res["results_json"] = os.path.abspath(atomic_write(os.path.join(out, "results.json"),
-                                                       write))
+    res["results_json"] = os.path.abspath(write_json(os.path.join(out, "results.json"), res))
     if log is not None:
         log(results_table(res))
     return res
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        return None if not math.isfinite(float(x)) else float(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    return x
 
 
 def results_table(res):

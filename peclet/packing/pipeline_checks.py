@@ -42,13 +42,12 @@ the command line's names are used when ``cli=True``):
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
-from peclet.core.files import check_writable_path
+from peclet.core.files import check_output_dir, clear_outputs
 from peclet.core.validation import (PecletArgumentError, check_bool, check_float, check_int,
                                      describe_range)
 
@@ -148,44 +147,6 @@ def _int_arg(name, value, lo, hi, why=""):
     return v
 
 
-def _check_out(out, overwrite, name):
-    """(absolute path, earlier run's files present) after checking ``out`` can take a run."""
-    if not isinstance(out, (str, os.PathLike)) or not os.fspath(out):
-        raise PecletArgumentError(name, "a directory path", out)
-    p = os.path.abspath(os.fspath(out))
-    if os.path.exists(p):
-        if not os.path.isdir(p):
-            raise PecletArgumentError(name, "a directory", os.fspath(out), "it is a file")
-        # the mode bits too: root may write anywhere, but a directory made read-only was
-        # made so on purpose
-        if not os.access(p, os.W_OK | os.X_OK) or not os.stat(p).st_mode & 0o222:
-            raise PecletArgumentError(name, "a writable directory", os.fspath(out),
-                                      "it is read-only")
-        blocked = [f for f in OUTPUTS if os.path.isdir(os.path.join(p, f))]
-        if blocked:
-            raise PecletArgumentError(name, "a directory where the run's files can be written",
-                                      os.fspath(out), f"{blocked[0]} in it is a directory")
-        previous = tuple(f for f in OUTPUTS if os.path.lexists(os.path.join(p, f)))
-        if previous and not overwrite:
-            shown = ", ".join(previous[:4]) + (", ..." if len(previous) > 4 else "")
-            raise PecletArgumentError(
-                name, "a new or empty directory", os.fspath(out),
-                f"it holds an earlier run's files ({shown}); pass "
-                f"{'--overwrite' if name.startswith('--') else 'overwrite=True'} to replace them")
-        return p, previous
-    check_writable_path(os.path.join(p, OUTPUTS[2]), name)
-    return p, ()
-
-
-def clear_outputs(out, previous):
-    """Remove the earlier run's files ``previous`` (names from :data:`OUTPUTS`) from ``out``."""
-    for f in previous:
-        if f in OUTPUTS:
-            path = os.path.join(out, f)
-            if os.path.lexists(path) and not os.path.isdir(path):
-                os.remove(path)
-
-
 def check_run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
               mc_samples=400_000, shell_points=1200, overwrite=False, particle=None,
               quad_n=32, shell_resolution=112, sweep=(), sweep_n=32, mesh_n=150,
@@ -248,7 +209,7 @@ def check_run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, bo
             f"their start cloud reaches y = {y_cloud:.1f} D, a free fall of {t_fall:.2f} "
             f"> {t_land:.2f} time units before the quench: widen {nm('box')} or raise "
             f"{nm('steps_scale')}")
-    out_abs, previous = _check_out(out, overwrite, nm("out"))
+    out_abs, previous = check_output_dir(out, OUTPUTS, overwrite, nm("out"))
     return RunPlan(out=out_abs, rings=rings, seed=seed, threads=threads,
                    steps_scale=steps_scale, box=box, mc_samples=mc_samples,
                    shell_points=shell_points, protocol=protocol, y_cloud=y_cloud,

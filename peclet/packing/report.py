@@ -9,14 +9,13 @@ container, with which cuts. Lengths in element diameters D unless said otherwise
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
 
 import numpy as np
 
-from peclet.core.files import atomic_write
+from peclet.core.files import write_json
 
 __all__ = ["analyse", "radial_features", "write_results", "table", "CROP", "CONTACT_GAP"]
 
@@ -162,23 +161,7 @@ def write_results(path, res, rep):
                                        complete=res.complete, state_sha256=res.state_hash(),
                                        ke_end=float(res.ke[-1]) if res.ke else None),
                analysis=rep)
-
-    def w(tmp):
-        with open(tmp, "w") as fh:
-            json.dump(_clean(doc), fh, indent=1)
-    return atomic_write(path, w)
-
-
-def _clean(x):
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple, np.ndarray)):
-        return [_clean(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(float(x)) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
+    return write_json(path, doc)
 
 
 def table(res, rep):
