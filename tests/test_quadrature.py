@@ -392,3 +392,19 @@ def test_bad_input():
     hole = b.add_difference(s, b.add_leaf("sphere", [0.55]))
     with pytest.raises(ValueError, match="empty solid"):
         b.body_properties(hole, *BOX, n=16)
+
+
+def test_a_solid_far_thinner_than_its_box_stops_with_a_clear_error(monkeypatch):
+    """A slab 1e-5 thick across a unit box makes every refinement level 4x larger (it ran for
+    minutes): past the cell budget the quadrature says why instead. The budget is lowered here
+    so the test is quick; the page's ring needs at most 1184 cells (tol 1e-10)."""
+    from peclet.core.geom.quadrature import refine
+
+    monkeypatch.setattr(refine, "MAX_CELLS", 3000)
+    b = geom.SceneBuilder()
+    slab = b.add_leaf("box", [0.5, 1e-5, 0.5])
+    with pytest.raises(ValueError, match="far thinner than its box"):
+        b.body_properties(slab, [-1, -1, -1], [1, 1, 1], tol=1e-6)
+    ring = b.add_leaf("hollow_cylinder", [0.5, 1.0, 0.12])          # a normal solid still fits
+    p = b.body_properties(ring, [-0.56] * 3, [0.56] * 3, tol=1e-6)
+    assert p.diagnostics["cells"] <= 3000

@@ -49,6 +49,12 @@ DIP_BUDGET = 256
 #: probes resolve at the tolerances accepted, and it bounds the work of a cell that never
 #: converges (reported as ``unconverged_cells``).
 MAX_DEPTH = 8
+
+#: Most cells one quadrature may integrate. The page's ring needs 544-1184 cells at tol 1e-6 to
+#: 1e-10; a solid far thinner than its box (a slab 1e-5 thick across a unit box) makes every
+#: level of refinement 4x larger and would run for minutes: past this budget the quadrature
+#: stops with an error saying so instead (refine.integrate_body).
+MAX_CELLS = 50_000
 #: Signature probes across a cell (intervals). With it the top-level cell count follows from
 #: the sampling resolution: ``ceil(n / V_PROBES)`` cells per axis (see api.body_properties).
 V_PROBES = 4

@@ -13,7 +13,7 @@ from numba import njit, prange
 
 from .. import kernels as K
 from .cell_rule import cell_bound, integrate_cell
-from .constants import EPS, MAX_BREAKS, MAX_DEPTH, ROUND_ULPS, SCRATCH_ROWS, SEEDS
+from .constants import EPS, MAX_BREAKS, MAX_CELLS, MAX_DEPTH, ROUND_ULPS, SCRATCH_ROWS, SEEDS
 
 
 @njit(cache=True, parallel=True)
@@ -100,6 +100,12 @@ def integrate_body(prog, lo, hi, n, lip, tol):
     visited = 0
     unconverged = 0
     while len(new):
+        if visited + len(new) > MAX_CELLS:
+            raise ValueError(
+                f"quadrature budget: refining to tol={tol:g} needs more than {MAX_CELLS} cells "
+                f"({visited} integrated down to level {int(depth.max(initial=0))}, "
+                f"{len(new)} more asked for): the solid is far thinner than its box [lo, hi] "
+                "or tol is out of reach; give a box closer to the solid, or a looser tol")
         m_new, e_new, c_new = integrate_cells(*P, new, lip, *_G5, *_G7, cen)
         visited += len(new)
         if np.any(c_new < 0):
