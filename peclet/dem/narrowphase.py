@@ -162,6 +162,22 @@ def _sort_hits(hits, n0, n1):
 
 
 @njit(cache=True, inline="always")
+def _shell_vs_body(xa, Ra, sa, xt, Rt, so, geo, nsign, fbase, margin, origin, st, hits, nh):
+    """One way of the two-way test: body a's shell probes (shape ``sa``) against the tree of
+    the body at ``xt``/``Rt`` (shape ``so``), first bounded at a's centre. ``nsign`` and
+    ``fbase`` orient the normals and feature ids of this direction (see _probes_vs_tree)."""
+    op = geo.shape_op
+    rad = geo.shape_rad
+    goff, gd, gh = geo.shape_grid_off[so], geo.shape_grid_dims[so], geo.shape_grid_oh[so]
+    phr = _sphere_bound(xa, Ra, origin, rad[sa], xt, Rt, op[so, 0], op[so, 1], 1.0,
+                        geo.shape_lip[so], rad[so], margin, geo.ops, geo.lk, geo.lr, geo.grid,
+                        goff, gd, gh, st)
+    return _probes_vs_tree(xa, Ra, sa, geo, xt, Rt, op[so, 0], op[so, 1], 1.0,
+                           geo.shape_lip[so], rad[so], nsign, fbase, margin, phr, geo.grid, goff,
+                           gd, gh, st, hits, nh)
+
+
+@njit(cache=True, inline="always")
 def _probes_vs_tree(xa, Ra, s, geo, xt, Rt, o0, o1, sgn, lip, trad, nsign, fbase, margin,
                     phr, grid, goff, gdims, goh, st, hits, nh):
     """Body a's shell probes (shape s, at xa with rotation Ra) against a tree, hits in probe
@@ -374,22 +390,10 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                 else:
                     # a bound at each centre covers the whole shape: many candidate pairs of a
                     # settled bed are neighbours that do not touch
-                    gd = gdims[sb]
-                    gh = goh[sb]
-                    phr = _sphere_bound(xa, Ra, origin, shape_rad[sa], xb, Rb, shape_op[sb, 0],
-                                        shape_op[sb, 1], 1.0, geo.shape_lip[sb], shape_rad[sb],
-                                        margin, ops, lk, lr, grid, goff[sb], gd, gh, st)
-                    nh = _probes_vs_tree(xa, Ra, sa, geo, xb, Rb, shape_op[sb, 0], shape_op[sb, 1],
-                                         1.0, geo.shape_lip[sb], shape_rad[sb], 1.0, 0, margin,
-                                         phr, grid, goff[sb], gd, gh, st, hits, nh)
-                    gd = gdims[sa]
-                    gh = goh[sa]
-                    phr = _sphere_bound(xb, Rb, origin, shape_rad[sb], xa, Ra, shape_op[sa, 0],
-                                        shape_op[sa, 1], 1.0, geo.shape_lip[sa], shape_rad[sa],
-                                        margin, ops, lk, lr, grid, goff[sa], gd, gh, st)
-                    nh = _probes_vs_tree(xb, Rb, sb, geo, xa, Ra, shape_op[sa, 0], shape_op[sa, 1],
-                                         1.0, geo.shape_lip[sa], shape_rad[sa], -1.0, FEATURE_DIR,
-                                         margin, phr, grid, goff[sa], gd, gh, st, hits, nh)
+                    nh = _shell_vs_body(xa, Ra, sa, xb, Rb, sb, geo, 1.0, 0, margin, origin,
+                                        st, hits, nh)
+                    nh = _shell_vs_body(xb, Rb, sb, xa, Ra, sa, geo, -1.0, FEATURE_DIR, margin,
+                                        origin, st, hits, nh)
             else:
                 w = -1 - b
                 sg = geo.wall_sign[w]
