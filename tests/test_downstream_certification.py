@@ -181,22 +181,9 @@ def test_mesh_engine_answers_an_empty_solid_as_outside_everywhere():
 
 
 # ---------------------------------------------------------------------------- upstream wheel
-@pytest.fixture(scope="module")
-def upstream_python(tmp_path_factory):
-    venv = tmp_path_factory.mktemp("peclet-geom-venv")
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
-    py = str(venv / "bin" / "python")
-    proc = subprocess.run([py, "-m", "pip", "install", "-q", "peclet-geom"],
-                          capture_output=True, text=True, timeout=600)
-    if proc.returncode != 0:
-        pytest.skip(f"peclet-geom could not be installed from the package index: "
-                    f"{proc.stderr.strip()[-300:]}")
-    return py
-
-
 @pytest.mark.slow
-def test_upstream_geom_certification(upstream_python, tmp_path):
-    done, report = certify(UPSTREAM, tmp_path, {"PECLET_GEOM_PYTHON": upstream_python})
+def test_upstream_geom_certification(peclet_geom_python, tmp_path):
+    done, report = certify(UPSTREAM, tmp_path, {"PECLET_GEOM_PYTHON": peclet_geom_python})
     assert done.returncode == 0, done.stdout[-3000:]
     assert verdicts(report) == {
         "equation1 (reference rule)": "passed",

@@ -1,7 +1,5 @@
 """A foreign engine certified out of process: the upstream ``peclet-geom`` wheel, installed
 into its own virtual environment (it ships a ``peclet`` namespace that must not meet ours)."""
-import subprocess
-import sys
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -16,16 +14,9 @@ AGREEING = tuple(k for k in pst.BOUNDED_KINDS if k != "superquadric")
 
 
 @pytest.fixture(scope="module")
-def upstream(tmp_path_factory):
-    venv = tmp_path_factory.mktemp("peclet-geom-venv")
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
-    py = str(venv / "bin" / "python")
-    proc = subprocess.run([py, "-m", "pip", "install", "-q", "peclet-geom"],
-                          capture_output=True, text=True, timeout=600)
-    if proc.returncode != 0:
-        pytest.skip(f"peclet-geom could not be installed from the package index: "
-                    f"{proc.stderr.strip()[-300:]}")
-    with SubprocessBackend(peclet_geom_child_command(py), name="peclet-geom") as backend:
+def upstream(peclet_geom_python):
+    with SubprocessBackend(peclet_geom_child_command(peclet_geom_python),
+                           name="peclet-geom") as backend:
         yield backend
 
 
