@@ -33,6 +33,7 @@ from .containers import Container, parse_container
 from .elements import ELEMENTS, Element
 from .freeze import Pack
 from .material import Material, as_material
+from .pipeline_checks import set_threads
 from .progress import Progress
 from .protocols import G, Body, RunState, drive, insert_bodies, new_simulation, parse_protocol
 
@@ -223,14 +224,8 @@ class PackResult:
 
 
 def _set_threads(threads):
-    if threads is None:
-        return None
-    import numba
-
-    cap = int(numba.config.NUMBA_NUM_THREADS)
-    t = check_int("threads", threads, 1, cap)
-    numba.set_num_threads(t)
-    return t
+    """pipeline_checks.set_threads (the one check and call), None leaving numba's setting."""
+    return None if threads is None else set_threads(threads)
 
 
 def _check_run_args(count, seed, threads, progress, max_steps, checkpoint_dir,
