@@ -275,3 +275,24 @@ def test_non_finite_state_stops_the_step_naming_the_particle():
         sim.step(1e10)                              # v = g dt overflows to -inf
     assert sim.step_count == 0
     assert np.all(np.isfinite(sim.get_velocities()))
+
+
+def test_state_hash_sees_one_bit_of_any_field(tmp_path):
+    a = _pile()
+    for _ in range(20):
+        a.step()
+    path = tmp_path / "state.npz"
+    a.save(path)
+    b = Simulation.load(path)
+    assert b.state_hash() == a.state_hash()
+    for getter, setter in ((b.get_positions, b.set_positions),
+                           (b.get_quaternions, b.set_quaternions),
+                           (b.get_velocities, b.set_velocities),
+                           (b.get_angular_velocities, b.set_angular_velocities)):
+        x = np.array(getter(), dtype=np.float64)
+        flipped = x.copy()
+        flipped[5, 1] = np.nextafter(flipped[5, 1], np.inf)
+        setter(flipped)
+        assert b.state_hash() != a.state_hash()
+        setter(x)
+        assert b.state_hash() == a.state_hash()

@@ -1,5 +1,6 @@
-"""The narrow phase's culling (distance grid, super-clusters, clusters, per-probe bounds) never
-changes a contact: the same contacts, bit for bit, as evaluating every probe within reach."""
+"""The narrow phase's culling (distance grid, super-clusters, clusters, per-probe bounds) and its
+pruned programs never change a contact: the same contacts, bit for bit, as evaluating the whole
+tree at every probe within reach."""
 import numpy as np
 
 from peclet.dem import Simulation
@@ -37,9 +38,11 @@ def test_culled_contacts_equal_every_probe_evaluated():
     fast = sim.detect_contacts()
     geo = sim._geometry()
     # no Lipschitz culling, no grid: every probe within the bounding spheres is evaluated
+    # and no pruned programs (no lattice: every evaluation runs the whole program)
     sim._geo = geo._replace(shape_lip=np.zeros_like(geo.shape_lip),
                             wall_lip=np.zeros_like(geo.wall_lip),
-                            shape_grid_dims=np.zeros_like(geo.shape_grid_dims))
+                            shape_grid_dims=np.zeros_like(geo.shape_grid_dims),
+                            shape_pdims=np.zeros_like(geo.shape_pdims))
     brute = sim.detect_contacts()
     sim._geo = geo
     assert len(fast["depth"]) > 50

@@ -2,7 +2,9 @@
 
 ``Simulation`` is the engine, a facade over named parts: ``bodies`` (per-particle state),
 ``shapes`` (shapes, walls and the flat ``Geometry`` the kernels read), ``domain``, ``contacts``
-(detection and the warm-start cache; kernels in ``broadphase``/``narrowphase``), ``materials``,
+(detection and the warm-start cache; kernels in ``broadphase``/``narrowphase``, with
+``distgrid`` bounds, ``reuse`` of probe lists between steps and the ``manifold`` reduction),
+``materials``,
 ``solver``, ``rigid`` (the rotor step), ``guards`` and ``persistence`` (save/load).
 ``scene_particle`` turns a CSG tree into a registered particle (mass properties, principal
 frame, shell probes). Both load lazily so that importing one layer

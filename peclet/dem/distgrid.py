@@ -29,14 +29,21 @@ PAD_CELLS = 2
 BAND_CELLS = 8
 
 
+def lattice(radius):
+    """(origin (3,), spacing h, cells per axis) of the lattice of a shape whose solid lies
+    within ``radius`` of its home-frame origin: a cube of ``cells`` cells of side h, centred
+    on the origin, covering the bounding sphere plus PAD_CELLS cells."""
+    h = float(radius) / CELLS_PER_RADIUS
+    return np.full(3, -(CELLS_PER_RADIUS + PAD_CELLS) * h), h, 2 * (CELLS_PER_RADIUS + PAD_CELLS)
+
+
 def bake(program, radius):
     """(values (n,), dims (3,) int64, origin_and_h (4,)) of the grid of a 1-Lipschitz
-    ``program`` whose solid lies within ``radius`` of the home-frame origin."""
-    h = float(radius) / CELLS_PER_RADIUS
-    n = 2 * (CELLS_PER_RADIUS + PAD_CELLS) + 1
-    origin = np.full(3, -(CELLS_PER_RADIUS + PAD_CELLS) * h)
-    dims = np.full(3, n, np.int64)
-    out = np.empty(n ** 3)
+    ``program`` whose solid lies within ``radius`` of the home-frame origin; its nodes are
+    the corners of :func:`lattice`'s cells."""
+    origin, h, cells = lattice(radius)
+    dims = np.full(3, cells + 1, np.int64)
+    out = np.empty(int(np.prod(dims)))
     bake_lattice(program.ops, program.leaf_kind, program.leaf_reals, program.op_begin,
                  program.op_end, origin, np.full(3, h), dims, BAND_CELLS * h, out)
     return out, dims, np.array([origin[0], origin[1], origin[2], h])

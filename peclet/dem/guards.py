@@ -1,7 +1,10 @@
 """Step guards: a non-finite or runaway state stops the step before it is committed."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 #: Speed guard: |v| (and |omega| times the bounding radius) must stay below this many domain
 #: sizes per unit time, or the step raises :class:`StepError`.
@@ -31,18 +34,35 @@ def speed_bound(domain, pos, radii):
     return SPEED_BOUND_DOMAINS_PER_TIME * size
 
 
+@njit(cache=True)
+def _first_bad(x, q, v, w, radii, bound):
+    """(0, -1) when every particle is finite and within the speed bound; else (1, i) for the
+    first non-finite particle i, or (2, i) for the first too fast one (finiteness first)."""
+    n = x.shape[0]
+    for i in range(n):
+        for e in range(3):
+            if not (math.isfinite(x[i, e]) and math.isfinite(v[i, e])
+                    and math.isfinite(w[i, e])):
+                return 1, i
+        for e in range(4):
+            if not math.isfinite(q[i, e]):
+                return 1, i
+    for i in range(n):
+        sv = math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
+        sw = math.sqrt(w[i, 0] ** 2 + w[i, 1] ** 2 + w[i, 2] ** 2) * radii[i]
+        if max(sv, sw) > bound:
+            return 2, i
+    return 0, -1
+
+
 def check_state(x, q, v, w, radii, bound, step):
     """Raise :class:`StepError` naming ``step`` and the first particle whose state is
     non-finite or whose speed (|v|, or |omega| times its radius) exceeds ``bound``."""
-    bad = ~(np.isfinite(x).all(axis=1) & np.isfinite(q).all(axis=1)
-            & np.isfinite(v).all(axis=1) & np.isfinite(w).all(axis=1))
-    if np.any(bad):
-        i = int(np.flatnonzero(bad)[0])
+    kind, i = _first_bad(x, q, v, w, radii, float(bound))
+    if kind == 1:
         raise StepError(f"step {step}: particle {i} has a non-finite state "
                         f"(x={x[i]}, v={v[i]}, omega={w[i]})", step, i)
-    speed = np.maximum(np.sqrt((v ** 2).sum(axis=1)), np.sqrt((w ** 2).sum(axis=1)) * radii)
-    fast = speed > bound
-    if np.any(fast):
-        i = int(np.flatnonzero(fast)[0])
-        raise StepError(f"step {step}: particle {i} moves at {speed[i]:.6g} > the bound "
+    if kind == 2:
+        speed = max(float(np.sqrt((v[i] ** 2).sum())), float(np.sqrt((w[i] ** 2).sum())) * radii[i])
+        raise StepError(f"step {step}: particle {i} moves at {speed:.6g} > the bound "
                         f"{bound:.6g} (1e3 domain sizes per unit time)", step, i)

@@ -17,8 +17,9 @@ from typing import NamedTuple
 import numpy as np
 
 from peclet.core.geom import SceneBuilder
-from peclet.dem import distgrid
 from peclet.core.geom.program import compile_root, concatenate
+from peclet.core.geom.pruning import bake_pruned, concatenate_pruned
+from peclet.dem import distgrid
 from peclet.core.validation import (PecletArgumentError, check_array, check_bool,
                                     check_float, check_int)
 
@@ -29,6 +30,9 @@ SPHERE, SCENE = 0, 1
 CLUSTER_CELL_FRACTION = 0.25
 #: Clusters are grouped in super-clusters: voxels of this many cluster cells a side.
 GROUP_CELLS = 2
+#: The pruned programs' blocks are this many distance-grid cells a side (2 cells: near the
+#: surface of a Pall ring ~2 of its 11 leaves remain, for 0.6 MB; see benchmarks/bench_pruning).
+PRUNE_BLOCK_CELLS = 2
 
 
 class SphereShape(NamedTuple):
@@ -39,9 +43,10 @@ class SphereShape(NamedTuple):
 class SceneShape(NamedTuple):
     """A composed CSG particle: the flat tree (``node_ints`` (n, 3), ``node_reals`` (n, 16)),
     its ``root`` node, surface ``shell`` probes (M, 3) in the home frame, the bounding radius
-    about the origin, the compiled program, whether phi is 1-Lipschitz (cluster culling), and
+    about the origin, the compiled program, whether phi is 1-Lipschitz (cluster culling),
     for a 1-Lipschitz tree its :mod:`peclet.dem.distgrid` (``grid`` values, ``grid_dims`` (3,),
-    ``grid_oh`` (origin, h); dims 0 = none)."""
+    ``grid_oh`` (origin, h); dims 0 = none), and its ``pruned`` programs
+    (:mod:`peclet.core.geom.pruning`, bit for bit the program's values, block by block)."""
     radius: float
     shell: np.ndarray
     node_ints: np.ndarray
@@ -52,6 +57,7 @@ class SceneShape(NamedTuple):
     grid: np.ndarray
     grid_dims: np.ndarray
     grid_oh: np.ndarray
+    pruned: tuple
 
 
 class Wall(NamedTuple):
@@ -81,6 +87,11 @@ class Geometry(NamedTuple):
     ``grid`` the shapes' distance grids concatenated, shape k's from ``shape_grid_off[k]``
     with ``shape_grid_dims`` (k, 3) (0 = none) and ``shape_grid_oh`` (k, 4) (origin, h);
     ``wall_sign`` -1 for an inverted wall; ``max_hits``: a task's hit buffer size.
+    ``pops`` and ``prange``: the pruned programs of every tree (a wall's is its whole program)
+    packed by :func:`peclet.core.geom.pruning.concatenate_pruned`, with per shape
+    ``shape_pboff`` (first block), ``shape_pob`` (k, 5) (lattice origin, block, 1/block),
+    ``shape_pdims`` (k, 3) (0: no lattice) and ``shape_pfull`` (k, 2) (the whole program's rows
+    in ``pops``); ``wall_pfull`` (w, 2) likewise.
     All home-frame lengths; the bounds are inflated by a relative 1e-12 (+ 1e-15) so that a
     round-off never makes a culled sphere miss a point it contains."""
     shape_kind: np.ndarray
@@ -113,6 +124,13 @@ class Geometry(NamedTuple):
     ops: np.ndarray
     lk: np.ndarray
     lr: np.ndarray
+    pops: np.ndarray
+    prange: np.ndarray
+    shape_pboff: np.ndarray
+    shape_pob: np.ndarray
+    shape_pdims: np.ndarray
+    shape_pfull: np.ndarray
+    wall_pfull: np.ndarray
     max_hits: int
 
 
@@ -144,7 +162,10 @@ def scene_shape(node_ints, node_reals, root, shell_points, bounding_radius):
         grid, dims, oh = distgrid.bake(prog, br)
     else:
         grid, dims, oh = np.zeros(0), np.zeros(3, np.int64), np.ones(4)
-    return SceneShape(br, shell.copy(), ni, nr, root, prog, lip, grid, dims, oh)
+    origin, h, cells = distgrid.lattice(br)
+    nb = -(-cells // PRUNE_BLOCK_CELLS)
+    pruned = bake_pruned(prog, origin, PRUNE_BLOCK_CELLS * h, (nb, nb, nb))
+    return SceneShape(br, shell.copy(), ni, nr, root, prog, lip, grid, dims, oh, pruned)
 
 
 def analytic_wall(node_ints, node_reals, root, invert, e, mu):
@@ -244,14 +265,26 @@ def build_geometry(shapes, walls):
             clr.append((ncl, ncl))
             grr.append((ngr, ngr))
     progs.extend(w.program for w in walls)
+    tables = [s.pruned for s in shapes if isinstance(s, SceneShape)] + [None] * len(walls)
     if progs:
         ops, lk, lr, ranges = concatenate(progs)
+        ps = concatenate_pruned(progs, tables)
     else:
         ops = np.zeros((1, 2), np.int32)
         lk = np.zeros(1, np.int32)
         lr = np.zeros((1, 24))
         ranges = np.zeros((0, 2), np.int64)
+        ps = None
     scene = [isinstance(s, SceneShape) for s in shapes]
+    pboff = np.zeros(len(shapes), np.int64)
+    pob = np.ones((len(shapes), 5))
+    pdims = np.zeros((len(shapes), 3), np.int64)
+    pfull = np.full((len(shapes), 2), -1, np.int64)
+    rank = np.cumsum(scene) - 1
+    for k, c in enumerate(scene):
+        if c:
+            pboff[k], pob[k], pdims[k], pfull[k] = (ps.block_off[rank[k]], ps.ob[rank[k]],
+                                                    ps.dims[rank[k]], ps.full[rank[k]])
     grids = [s.grid if c else np.zeros(0) for s, c in zip(shapes, scene)]
     goff = np.concatenate([[0], np.cumsum([len(g) for g in grids])])[:len(shapes)]
     shape_op = np.full((len(shapes), 2), -1, np.int64)
@@ -288,4 +321,9 @@ def build_geometry(shapes, walls):
         wall_lip=np.array([w.lip for w in walls], np.bool_),
         wall_e=np.array([w.e for w in walls]),
         wall_mu=np.array([w.mu for w in walls]),
-        ops=ops, lk=lk, lr=lr, max_hits=2 * maxm + 2)
+        ops=ops, lk=lk, lr=lr,
+        pops=ps.ops if ps is not None else ops,
+        prange=ps.block_range if ps is not None else np.zeros((0, 2), np.int64),
+        shape_pboff=pboff, shape_pob=pob, shape_pdims=pdims, shape_pfull=pfull,
+        wall_pfull=(ps.full[sum(scene):] if ps is not None else np.zeros((0, 2), np.int64)),
+        max_hits=2 * maxm + 2)

@@ -19,6 +19,7 @@ fixed order, so the state is bitwise identical at any thread count, and ``save``
 """
 from __future__ import annotations
 
+import hashlib
 import time
 
 import numpy as np
@@ -269,6 +270,16 @@ class Simulation:
         if np.isnan(b.inv_inertia).any():
             self._need_shapes()
         return b.resolved_inv_inertia(self._radii() if self._shapes else None)
+
+    def state_hash(self):
+        """SHA-256 (hex) of the state's float64 bytes: positions, quaternions (x, y, z, w),
+        velocities and angular velocities, in that order. Equal hashes: the same state bit for
+        bit (e.g. the same run at another thread count, or with another buffer capacity)."""
+        h = hashlib.sha256()
+        b = self._bodies
+        for a in (b.pos, b.quat, b.vel, b.omega):
+            h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+        return h.hexdigest()
 
     def kinetic_energy(self):
         """Translational plus rotational kinetic energy; bodies with inverse mass 0 contribute
