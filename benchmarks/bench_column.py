@@ -13,7 +13,6 @@ in at most 10 minutes on the 2-core machine.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -21,7 +20,7 @@ import time
 
 import numba
 
-from peclet.core.files import atomic_write
+from peclet.core.files import write_json
 from peclet.packing import Material, RainProtocol, api, pack
 from peclet.packing import report as bed_report
 
@@ -76,11 +75,7 @@ def main(argv=None):
                f_env=rep["bulk"]["f_env"], radial_features=rep["radial"]["features"],
                coordination=rep["coordination"], analysis_timing=rep["timing"],
                file_bytes=sizes, state_sha256=res.state_hash())
-
-    def w(tmp):
-        with open(tmp, "w") as fh:
-            json.dump(bed_report._clean(doc), fh, indent=1)
-    atomic_write(a.json, w)
+    write_json(a.json, doc)
     rows = [("rings, column", f"{a.count}, N = {a.n:g}"),
             ("element build (quadrature + shell)", f"{times['build']:.1f} s"),
             ("pack (rain + settle)", f"{times['pack']:.1f} s, {res.steps} steps "

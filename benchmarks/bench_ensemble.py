@@ -70,7 +70,10 @@ def main():
              f"{min(r[f] for r in rows):.4f} .. {max(r[f] for r in rows):.4f}"]
             for f, name in (("eps", "eps"), ("f_env", "f_env"), ("z_mean", "Z"))]
     print(table(summ, ["figure", "mean", "std error", "95% interval (t)", "range"]))
-    path = write("ensemble", dict(
+    # the default comparison (the serial loop at every core) keeps the name; another
+    # serial thread count is a separate record
+    name = "ensemble" if serial_threads == cores else f"ensemble_serial{serial_threads}"
+    path = write(name, dict(
         seeds=a.seeds, count=a.count, steps_scale=a.steps_scale, mc_samples=a.mc_samples,
         cores=cores, serial_threads=serial_threads, serial_s=t_serial, ensemble_s=t_dask,
         speedup=ratio, load_average=[load0[0], load1[0]], hashes_equal=int(sum(same)),
