@@ -23,6 +23,8 @@ CASES = [
     (["--box", "-1"], "--box", "(0, 100]"),
     (["--box", "nan"], "--box", "finite"),
     (["--box", "inf"], "--box", "finite"),
+    (["--box", "-inf"], "--box", "finite"),          # a negative value after its option
+    (["--box", "-1e3"], "--box", "(0, 100]"),
     (["--box", "abc"], "--box", "a number"),
     (["--box", "1000"], "--box", "(0, 100]"),
     (["--box", "3.0"], "--box", "contact cutoff"),
@@ -78,6 +80,23 @@ def test_a_bad_option_is_one_line_exit_2_and_nothing_written(tmp_path, capsys, a
     _assert_one_line(err, option, phrase)
     assert not out.exists() and os.listdir(tmp_path) == []
     assert time.perf_counter() - t < 20          # refused before the build (minutes)
+
+
+@pytest.mark.parametrize("argv,phrase", [
+    (["--no-such-option"], "unrecognized arguments: --no-such-option"),
+    (["--rings"], "argument --rings: expected one argument"),
+    (["--overwrite", "-1"], "argument --overwrite: ignored explicit argument '-1'"),
+])
+def test_what_argparse_refuses_is_one_line_too(tmp_path, capsys, argv, phrase):
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as exc:
+        main(["pall-ring", "--out", str(out)] + argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    # an unknown option is the top-level parser's (``peclet: error:``), the rest the command's
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("peclet") and f"error: {phrase}" in lines[0]
+    assert not out.exists()
 
 
 def test_out_that_is_a_file_or_lies_under_one(tmp_path, capsys):
