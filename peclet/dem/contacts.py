@@ -66,6 +66,7 @@ class Detector:
         #: the probe lists carried between detections (exact: the contacts are the same
         #: with it disabled, only slower)
         self.reuse = Reuse(narrowphase.WORKERS)
+        self._scratch = None
 
     def _slots(self, ntask):
         need = ntask * narrowphase.MAX_PER_TASK
@@ -95,10 +96,13 @@ class Detector:
         slots = self._slots(ntask)
         scale = float(geo.shape_rad.min())
         prev, old, cur = self.reuse.prepare(geo, tasks)
+        if self._scratch is None or self._scratch.lab.shape[1] < geo.max_hits:
+            self._scratch = narrowphase.scratch_for(geo.max_hits)
         narrowphase.narrow_phase(tasks, pos, rot, shape_of, geo, margin, (1e-6 * scale) ** 2,
                                  TOUCH_FRACTION * margin_fraction * scale,
                                  _chunks(tasks, geo, shape_of), slots,
-                                 self.reuse.delta(margin_fraction * scale), old, prev, cur)
+                                 self.reuse.delta(margin_fraction * scale), old, prev, cur,
+                                 self._scratch)
         self.reuse.commit(cur)
         count = slots.count
         total = int(count.sum())

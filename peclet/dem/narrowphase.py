@@ -63,6 +63,23 @@ class Tasks(NamedTuple):
     shift: np.ndarray
 
 
+class Scratch(NamedTuple):
+    """Per-worker scratch, kept between calls (an allocation per call and worker was a
+    page-mapping system call each, which serialises the threads): ``hits`` (WORKERS, H,
+    HIT_COLS), ``lab`` (WORKERS, H) with H >= the geometry's ``max_hits``, ``st`` (WORKERS,
+    MAX_STACK, STACK_COLS) the evaluation stack."""
+    hits: np.ndarray
+    lab: np.ndarray
+    st: np.ndarray
+
+
+def scratch_for(max_hits):
+    """A :class:`Scratch` for every worker, for tasks of at most ``max_hits`` hits."""
+    return Scratch(np.empty((WORKERS, max_hits, HIT_COLS)), np.empty((WORKERS, max_hits),
+                                                                       np.int64),
+                   np.empty((WORKERS, MAX_STACK, STACK_COLS)))
+
+
 class Slots(NamedTuple):
     """Output buffers: task t writes ``count[t]`` contacts from slot ``t * MAX_PER_TASK``:
     ``point`` (S, 3) world, ``normal`` (S, 3) unit from b to a, ``gap`` (S,), ``feat`` (S,)."""
@@ -247,7 +264,7 @@ def _replay(xa, Ra, s, geo, xt, Rt, prog, sgn, lip, trad, nsign, fbase, margin, 
     return nh
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _direction(t, d, old_t, prev, cur, xa, Ra, s, so, geo, zero, tree, nsign, fbase, margin,
                delta, st, hits, nh, pose, lpos, lend):
     """Direction ``d`` of task ``t`` (body a's probes, shape ``s``, against the tree of shape
@@ -255,8 +272,9 @@ def _direction(t, d, old_t, prev, cur, xa, Ra, s, so, geo, zero, tree, nsign, fb
     valid (see :mod:`peclet.dem.reuse`), else a scan (listing its probes when ``delta`` >= 0).
     Records the direction in ``cur`` from ``lpos`` (< ``lend``). Returns (nh, lpos).
     ``tree``: (xt, Rt, prog, sgn, lip, trad, grid, goff, gdims, goh), the tree's placement,
-    programs (see _point_vs_tree), sign, Lipschitz flag, bounding radius and distance grid (a
-    tuple: a call of more than 30 arguments cannot be inlined)."""
+    programs (see _point_vs_tree), sign, Lipschitz flag, bounding radius and distance grid, one
+    tuple. Not inlined: its three inlined copies cost minutes of compilation for a few percent
+    of run time."""
     xt, Rt, prog, sgn, lip, trad, grid, goff, gdims, goh = tree
     relative_pose(xa, Ra, xt, Rt, pose)
     ok = (old_t >= 0 and delta >= 0.0 and prev.count[old_t, d] >= 0
@@ -302,14 +320,13 @@ def _direction(t, d, old_t, prev, cur, xa, Ra, s, so, geo, zero, tree, nsign, fb
 
 @njit(cache=True)
 def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots,
-            delta, old, prev, cur):
+            delta, old, prev, cur, scratch):
     """Worker ``worker`` of ``nw``: the chunks worker, worker + nw, ... of ``size`` tasks
     (interleaved, so that the workers' loads even out); gathers each task's hits and reduces
     them into its own slots. ``old`` (T,): each task's index in ``prev`` (-1: none); the
     worker lists probes in its own share of ``cur``'s buffer and reports its use (or -1 on
-    overflow) in ``cur.fill[worker]``. The scratch buffers are allocated once per worker: a
-    task's hit buffer is large enough for every probe of both bodies, and allocating it per
-    chunk cost a page-mapping system call each time, which serialised the threads."""
+    overflow) in ``cur.fill[worker]``. Its scratch is ``scratch``'s row ``worker``: a task's
+    hit buffer is large enough for every probe of both bodies."""
     # the tables are taken out of the tuple once: a field read in the per-probe loop would
     # cost a reference-count update per read
     shape_kind, shape_rad, shape_lip = geo.shape_kind, geo.shape_rad, geo.shape_lip
@@ -318,9 +335,9 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                                               geo.shape_pob, geo.shape_pdims, geo.shape_pfull)
     grid, goff, gdims, goh = geo.grid, geo.shape_grid_off, geo.shape_grid_dims, geo.shape_grid_oh
     nogrid = np.zeros(3, np.int64)
-    st = np.empty((MAX_STACK, STACK_COLS))
-    hits = np.empty((geo.max_hits, HIT_COLS))
-    lab = np.empty(geo.max_hits, np.int64)
+    st = scratch.st[worker]
+    hits = scratch.hits[worker]
+    lab = scratch.lab[worker]
     reps = np.empty(MAX_CLUSTERS, np.int64)
     pose = np.empty(POSE)
     xb = np.empty(3)
@@ -414,7 +431,7 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
 
 @njit(cache=True, parallel=True)
 def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, slots, delta,
-                 old, prev, cur):
+                 old, prev, cur, scratch):
     """Contacts of every task into its own ``MAX_PER_TASK`` slots; ``slots.count[t]`` = used.
 
     ``tasks`` a :class:`Tasks`; ``pos`` (N, 3) and ``rot`` (N, 3, 3) the bodies' centres and
@@ -424,6 +441,7 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, sl
     (:mod:`peclet.dem.reuse`): ``old`` (T,) each task's index in ``prev`` (last step's
     :class:`peclet.dem.reuse.ReuseCache`, -1: none), ``cur`` this step's (filled here),
     ``delta`` the scans' extra reach (< 0: nothing listed, every direction scanned).
+    ``scratch``: a :class:`Scratch` for at least ``geo.max_hits`` hits.
     ``chunks`` = 1 runs serially in the calling thread (small problems, where a parallel launch
     costs more than it saves), otherwise WORKERS workers run in parallel, each taking every
     WORKERS-th chunk of TASK_CHUNK tasks. Either way every task writes only its own slots, and
@@ -433,4 +451,4 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, sl
         cur.fill[k] = 0
     for k in prange(nw):
         _worker(k, nw, TASK_CHUNK, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots,
-                delta, old, prev, cur)
+                delta, old, prev, cur, scratch)
