@@ -250,13 +250,18 @@ def _pile(seed=3, n=40):
     return sim
 
 
-def test_save_load_resumes_bitwise(tmp_path):
+def _stepped_and_reloaded(tmp_path, steps):
+    # a pile after ``steps`` steps, and its copy through save + load
     a = _pile()
-    for _ in range(60):
+    for _ in range(steps):
         a.step()
     path = tmp_path / "state.npz"
     a.save(path)
-    b = Simulation.load(path)
+    return a, Simulation.load(path)
+
+
+def test_save_load_resumes_bitwise(tmp_path):
+    a, b = _stepped_and_reloaded(tmp_path, 60)
     for _ in range(60):
         a.step()
         b.step()
@@ -278,12 +283,7 @@ def test_non_finite_state_stops_the_step_naming_the_particle():
 
 
 def test_state_hash_sees_one_bit_of_any_field(tmp_path):
-    a = _pile()
-    for _ in range(20):
-        a.step()
-    path = tmp_path / "state.npz"
-    a.save(path)
-    b = Simulation.load(path)
+    a, b = _stepped_and_reloaded(tmp_path, 20)
     assert b.state_hash() == a.state_hash()
     for getter, setter in ((b.get_positions, b.set_positions),
                            (b.get_quaternions, b.set_quaternions),
