@@ -116,9 +116,9 @@ def _point_vs_tree(px, py, pz, r, xt, Rt, prog, sgn, lip, trad, nsign, feat, mar
     low = lower_bound(grid, goff, gdims, goh, qx, qy, qz) - r
     if low > reach:
         return nh, low
-    pops, prange, boff, pob, pdims, f0, f1 = prog
-    b0, b1 = pruned_range(prange, boff, pob, pdims, f0, f1, qx, qy, qz)
-    phi, gx, gy, gz = eval_point(pops, lk, lr, b0, b1, qx, qy, qz, st)
+    ops, blocks, boff, pob, pdims, f0, f1 = prog
+    b0, b1 = pruned_range(blocks, boff, pob, pdims, f0, f1, qx, qy, qz)
+    phi, gx, gy, gz = eval_point(ops, lk, lr, b0, b1, qx, qy, qz, st)
     phi = sgn * phi - r
     bound = phi if (lip and phi == phi) else -np.inf
     if not (phi < margin):
@@ -331,8 +331,8 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
     # cost a reference-count update per read
     shape_kind, shape_rad, shape_lip = geo.shape_kind, geo.shape_rad, geo.shape_lip
     lk, lr = geo.lk, geo.lr
-    pops, prange, pboff, pob, pdims, pfull = (geo.pops, geo.prange, geo.shape_pboff,
-                                              geo.shape_pob, geo.shape_pdims, geo.shape_pfull)
+    ops, blocks, pboff, pob, pdims, sop = (geo.ops, geo.block_range, geo.shape_pboff,
+                                           geo.shape_pob, geo.shape_pdims, geo.shape_op)
     grid, goff, gdims, goh = geo.grid, geo.shape_grid_off, geo.shape_grid_dims, geo.shape_grid_oh
     nogrid = np.zeros(3, np.int64)
     st = scratch.st[worker]
@@ -363,8 +363,8 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                 for e in range(3):
                     xb[e] = pos[b, e] + tasks.shift[t, e]
                 Rb = rot[b]
-                prog_a = (pops, prange, pboff[sa], pob[sa], pdims[sa], pfull[sa, 0], pfull[sa, 1])
-                prog_b = (pops, prange, pboff[sb], pob[sb], pdims[sb], pfull[sb, 0], pfull[sb, 1])
+                prog_a = (ops, blocks, pboff[sa], pob[sa], pdims[sa], sop[sa, 0], sop[sa, 1])
+                prog_b = (ops, blocks, pboff[sb], pob[sb], pdims[sb], sop[sb, 0], sop[sb, 1])
                 if shape_kind[sa] == 0 and shape_kind[sb] == 0:
                     dx = xa[0] - xb[0]
                     dy = xa[1] - xb[1]
@@ -412,8 +412,8 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
             else:
                 w = -1 - b
                 # a wall has no lattice: its whole program
-                prog_w = (pops, prange, 0, nolattice, nogrid, geo.wall_pfull[w, 0],
-                          geo.wall_pfull[w, 1])
+                prog_w = (ops, blocks, 0, nolattice, nogrid, geo.wall_op[w, 0],
+                          geo.wall_op[w, 1])
                 if shape_kind[sa] == 0:
                     nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], origin, ident,
                                            prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,

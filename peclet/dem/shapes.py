@@ -75,8 +75,12 @@ class Wall(NamedTuple):
 class Geometry(NamedTuple):
     """Flat tables of all shapes (rows by shape id) and walls (rows by wall index).
 
-    ``shape_op`` / ``wall_op`` (k, 2): the [start, end) op range of the tree in ``ops``/``lk``/
-    ``lr`` (-1 for a sphere); ``shape_p0``: first probe of the shape; ``shape_cl`` (k, 2): its
+    ``ops`` (with ``lk``/``lr``, the leaf tables): every tree's whole program and its pruned
+    programs (:func:`peclet.core.geom.pruning.concatenate_pruned`); ``shape_op`` / ``wall_op``
+    (k, 2): the [start, end) rows of the whole program in ``ops`` (-1 for a sphere);
+    ``block_range`` (B, 2) the rows of each block's pruned program, and per shape
+    ``shape_pboff`` (its first block), ``shape_pob`` (k, 5) (lattice origin, block, 1/block)
+    and ``shape_pdims`` (k, 3) (blocks per axis; 0: no lattice, as for walls); ``shape_p0``: first probe of the shape; ``shape_cl`` (k, 2): its
     [start, end) cluster range; ``cl_range`` (C, 2): a cluster's [start, end) probe range;
     ``probe_off`` (M,): a probe's distance from its cluster's centre (rounded up);
     ``shape_gr`` (k, 2): the shape's [start, end) super-cluster range; ``gr_centre`` (G, 3),
@@ -87,11 +91,6 @@ class Geometry(NamedTuple):
     ``grid`` the shapes' distance grids concatenated, shape k's from ``shape_grid_off[k]``
     with ``shape_grid_dims`` (k, 3) (0 = none) and ``shape_grid_oh`` (k, 4) (origin, h);
     ``wall_sign`` -1 for an inverted wall; ``max_hits``: a task's hit buffer size.
-    ``pops`` and ``prange``: the pruned programs of every tree (a wall's is its whole program)
-    packed by :func:`peclet.core.geom.pruning.concatenate_pruned`, with per shape
-    ``shape_pboff`` (first block), ``shape_pob`` (k, 5) (lattice origin, block, 1/block),
-    ``shape_pdims`` (k, 3) (0: no lattice) and ``shape_pfull`` (k, 2) (the whole program's rows
-    in ``pops``); ``wall_pfull`` (w, 2) likewise.
     All home-frame lengths; the bounds are inflated by a relative 1e-12 (+ 1e-15) so that a
     round-off never makes a culled sphere miss a point it contains."""
     shape_kind: np.ndarray
@@ -124,13 +123,10 @@ class Geometry(NamedTuple):
     ops: np.ndarray
     lk: np.ndarray
     lr: np.ndarray
-    pops: np.ndarray
-    prange: np.ndarray
+    block_range: np.ndarray
     shape_pboff: np.ndarray
     shape_pob: np.ndarray
     shape_pdims: np.ndarray
-    shape_pfull: np.ndarray
-    wall_pfull: np.ndarray
     max_hits: int
 
 
@@ -267,28 +263,31 @@ def build_geometry(shapes, walls):
     progs.extend(w.program for w in walls)
     tables = [s.pruned for s in shapes if isinstance(s, SceneShape)] + [None] * len(walls)
     if progs:
-        ops, lk, lr, ranges = concatenate(progs)
+        # the leaf tables of the plain concatenation; the pruned set numbers leaves the same
+        # way and holds every whole program besides the pruned ones
+        _, lk, lr, _ = concatenate(progs)
         ps = concatenate_pruned(progs, tables)
+        ops, ranges, block_range = ps.ops, ps.full, ps.block_range
     else:
         ops = np.zeros((1, 2), np.int32)
         lk = np.zeros(1, np.int32)
         lr = np.zeros((1, 24))
         ranges = np.zeros((0, 2), np.int64)
-        ps = None
+        block_range = np.zeros((0, 2), np.int64)
     scene = [isinstance(s, SceneShape) for s in shapes]
+    is_scene = np.asarray(scene, bool)
+    nscene = int(is_scene.sum())
     pboff = np.zeros(len(shapes), np.int64)
     pob = np.ones((len(shapes), 5))
     pdims = np.zeros((len(shapes), 3), np.int64)
-    pfull = np.full((len(shapes), 2), -1, np.int64)
-    rank = np.cumsum(scene) - 1
-    for k, c in enumerate(scene):
-        if c:
-            pboff[k], pob[k], pdims[k], pfull[k] = (ps.block_off[rank[k]], ps.ob[rank[k]],
-                                                    ps.dims[rank[k]], ps.full[rank[k]])
+    if nscene:
+        pboff[is_scene] = ps.block_off[:nscene]
+        pob[is_scene] = ps.ob[:nscene]
+        pdims[is_scene] = ps.dims[:nscene]
     grids = [s.grid if c else np.zeros(0) for s, c in zip(shapes, scene)]
     goff = np.concatenate([[0], np.cumsum([len(g) for g in grids])])[:len(shapes)]
     shape_op = np.full((len(shapes), 2), -1, np.int64)
-    shape_op[np.asarray(scene, bool)] = np.asarray(ranges[:sum(scene)], np.int64).reshape(-1, 2)
+    shape_op[is_scene] = np.asarray(ranges[:nscene], np.int64).reshape(-1, 2)
     maxm = max([len(s.shell) for s in shapes if isinstance(s, SceneShape)] + [1])
     return Geometry(
         shape_kind=np.array([SCENE if c else SPHERE for c in scene], np.int64),
@@ -316,14 +315,11 @@ def build_geometry(shapes, walls):
                                   for s, c in zip(shapes, scene)], np.int64).reshape(-1, 3),
         shape_grid_oh=np.array([s.grid_oh if c else np.ones(4) for s, c in zip(shapes, scene)],
                                np.float64).reshape(-1, 4),
-        wall_op=np.asarray(ranges[sum(scene):], np.int64).reshape(-1, 2),
+        wall_op=np.asarray(ranges[nscene:], np.int64).reshape(-1, 2),
         wall_sign=np.array([-1.0 if w.invert else 1.0 for w in walls]),
         wall_lip=np.array([w.lip for w in walls], np.bool_),
         wall_e=np.array([w.e for w in walls]),
         wall_mu=np.array([w.mu for w in walls]),
-        ops=ops, lk=lk, lr=lr,
-        pops=ps.ops if ps is not None else ops,
-        prange=ps.block_range if ps is not None else np.zeros((0, 2), np.int64),
-        shape_pboff=pboff, shape_pob=pob, shape_pdims=pdims, shape_pfull=pfull,
-        wall_pfull=(ps.full[sum(scene):] if ps is not None else np.zeros((0, 2), np.int64)),
+        ops=ops, lk=lk, lr=lr, block_range=block_range,
+        shape_pboff=pboff, shape_pob=pob, shape_pdims=pdims,
         max_hits=2 * maxm + 2)
