@@ -1,7 +1,8 @@
 """Engines under certification: the backend protocol, our reference engine, loaders, and an
 out-of-process backend speaking numpy arrays over a pipe.
 
-Protocol (duck-typed; DESIGN.md §2 flat encoding, phi < 0 inside, world = root's parent frame):
+Protocol (duck-typed; the flat encoding of docs/architecture.md §2, phi < 0 inside, world =
+root's parent frame):
 
 ``evaluate(node_ints, node_reals, root, points) -> phi``
     node_ints (n, 3) int32 (kind, left, right), node_reals (n, 16) float64

@@ -18,3 +18,21 @@ def pytest_peclet_make_backend(config):
     or None to leave the choice to another plugin. Called once per session (per xdist
     worker), only when a certificate needs the backend and ``--peclet-backend`` is not given
     (the command line wins)."""
+
+
+@pytest.hookspec(firstresult=True)
+def pytest_peclet_make_dem_backend(config):
+    """Return the DEM engine under certification (an object with ``run(scenario, threads)``,
+    optionally ``thread_counts``, ``thread_determinism``, ``close`` and ``name``; see
+    :mod:`peclet_verify.dem_backends`), or None. Called once per session (per xdist worker),
+    only when a DEM certificate needs it and ``--peclet-dem-backend`` is not given; without
+    either, peclet's own engine is certified."""
+
+
+@pytest.hookspec(firstresult=True)
+def pytest_peclet_make_mass_backend(config):
+    """Return the mass-property engine under certification (an object with
+    ``mass_properties(node_ints, node_reals, root, lo, hi, resolution_or_tol)``,
+    ``resolutions`` and ``order``; see :mod:`peclet_verify.mass_backends`), or None. Called
+    once per session (per xdist worker) when ``--peclet-mass-backend`` is not given; without
+    either, peclet's quadrature is certified."""

@@ -4,9 +4,9 @@ that has the wheel installed::
 
     SubprocessBackend([venv_python, path_to_this_file], name="peclet-geom")
 
-It rebuilds each flat encoding (DESIGN.md §2) with the upstream ``SceneBuilder`` calls, then
-evaluates with its ``eval_root`` / ``eval_root_grad``. The upstream API has no bounding-ball
-query, so this backend offers no ``bound`` (the reference rule is used instead).
+It rebuilds each flat encoding (docs/architecture.md §2) with the upstream ``SceneBuilder``
+calls, then evaluates with its ``eval_root`` / ``eval_root_grad``. The upstream API has no
+bounding-ball query, so this backend offers no ``bound`` (the reference rule is used instead).
 """
 import os
 import sys
@@ -16,7 +16,8 @@ import numpy as np  # noqa: E402
 
 import wire  # noqa: E402  (by file location: this interpreter may have no peclet_verify)
 
-# kind id -> (upstream leaf name, parameter count); ids are the shared layout of DESIGN.md §2
+# kind id -> (upstream leaf name, parameter count); ids are the shared layout of
+# docs/architecture.md §2
 LEAVES = {1: ("sphere", 1), 2: ("hollow_cylinder", 3), 3: ("box", 3),
           4: ("hollow_cylinder_shell", 3), 5: ("capsule", 2), 6: ("torus", 2), 7: ("cone", 3),
           8: ("ellipsoid", 3), 9: ("superquadric", 4)}

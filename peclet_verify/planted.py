@@ -11,7 +11,13 @@ Used by the suite's own tests and by anyone who wants to see a certificate fail:
   (thread-count dependent);
 - :class:`FixedBufferEngine` never grows its contact buffer (``grow=True`` is the correct twin);
 - :class:`BadAnswerBackend` answers ``evaluate`` with something that is not a finite phi of the
-  right shape (one of :data:`BAD_ANSWERS`); a factory per kind for ``--peclet-backend``.
+  right shape (one of :data:`BAD_ANSWERS`); a factory per kind for ``--peclet-backend``;
+- DEM engines (peclet.dem with one defect each; factories for ``--peclet-dem-backend``):
+  :class:`NondeterministicSimulation` (random last bits: fails determinism at one thread),
+  :class:`DroppingContactsSimulation` (a contact buffer that never grows: fails buffer
+  growth), :class:`RestitutionOffSimulation` (e 5 % low: fails binary restitution);
+- :class:`OverclaimingVolumeMassBackend` (volume 1e-4 off, claims 1e-8: fails the mass
+  properties certificate; factory for ``--peclet-mass-backend``).
 """
 from __future__ import annotations
 
@@ -28,7 +34,10 @@ __all__ = ["OverclaimingBoundBackend", "TreeWalkBackend", "biased_cell_quadratur
            "cell_quadrature", "thread_order_pour", "FixedBufferEngine", "fixed_buffer_engine",
            "growing_buffer_engine", "BadAnswerBackend", "BAD_ANSWERS", "nan_backend",
            "inf_backend", "none_backend", "empty_backend", "short_backend", "zero_backend",
-           "raising_backend"]
+           "raising_backend", "NondeterministicSimulation", "DroppingContactsSimulation",
+           "RestitutionOffSimulation", "nondeterministic_dem_backend",
+           "dropping_contacts_dem_backend", "restitution_off_dem_backend",
+           "OverclaimingVolumeMassBackend", "overclaiming_mass_backend"]
 
 SHELL, HOLLOW_CYLINDER = 4, 2
 
@@ -258,3 +267,134 @@ empty_backend = partial(BadAnswerBackend, "empty")
 short_backend = partial(BadAnswerBackend, "short")
 zero_backend = partial(BadAnswerBackend, "zero")
 raising_backend = partial(BadAnswerBackend, "raise")
+
+
+# ---------------------------------------------------------------------------- DEM and mass
+# Known-bad engines of the DEM and mass-property families: each is peclet's own engine with
+# ONE defect, so each fails exactly the certificate that looks for that defect.
+class _PecletPage:
+    """peclet.dem.Simulation behind the page's API (everything delegated)."""
+
+    def __init__(self, capacity):
+        from peclet.dem import Simulation
+        self._sim = Simulation(capacity)
+
+    def __getattr__(self, item):
+        return getattr(self._sim, item)
+
+
+def _last_bit_noise(a):
+    """``a`` with a random last-bit change on random elements (at least one): fresh OS
+    entropy every call, so two identical runs differ."""
+    a = np.array(a, dtype=np.float64)
+    rng = np.random.default_rng()  # unseeded on purpose: the planted nondeterminism
+    flat = a.reshape(-1)
+    if flat.size:
+        step = rng.integers(-1, 2, flat.size)
+        step[rng.integers(flat.size)] = 1
+        flat[:] = np.where(step > 0, np.nextafter(flat, np.inf),
+                           np.where(step < 0, np.nextafter(flat, -np.inf), flat))
+    return a
+
+
+class NondeterministicSimulation(_PecletPage):
+    """Planted: every getter answers the state with random last-bit noise (the kind a racy
+    parallel reduction leaves), never fed back into the state. Two runs at one thread differ;
+    the physics is untouched (errors of 1e-16)."""
+
+    def get_positions(self):
+        return _last_bit_noise(self._sim.get_positions())
+
+    def get_quaternions(self):
+        return _last_bit_noise(self._sim.get_quaternions())
+
+    def get_velocities(self):
+        return _last_bit_noise(self._sim.get_velocities())
+
+    def get_angular_velocities(self):
+        return _last_bit_noise(self._sim.get_angular_velocities())
+
+
+class DroppingContactsSimulation(_PecletPage):
+    """Planted: a contact buffer that never grows. Its size is the constructor's hint
+    (``capacity`` x 16 contacts, peclet's initial slot buffer) or the last
+    ``set_contact_capacity(n)``; every contact beyond it is silently dropped. Under ample
+    hints it is peclet."""
+
+    def __init__(self, capacity):
+        super().__init__(capacity)
+        from peclet.dem.narrowphase import MAX_PER_TASK
+        self.buffer = max(1, int(capacity)) * MAX_PER_TASK
+        det = self._sim._detector
+        detect = det.detect
+
+        def truncated(*args, **kwargs):
+            c = detect(*args, **kwargs)
+            if len(c.a) <= self.buffer:
+                return c
+            return type(c)(*(f[:self.buffer] for f in c))
+        det.detect = truncated
+
+    def set_contact_capacity(self, n):
+        self._sim.set_contact_capacity(n)
+        self.buffer = int(n)
+
+
+class RestitutionOffSimulation(_PecletPage):
+    """Planted: every normal restitution (body material, walls, pairs) is taken 5 % low."""
+
+    FACTOR = 0.95
+
+    def set_material_params(self, e_n, e_t, mu):
+        self._sim.set_material_params(self.FACTOR * e_n, e_t, mu)
+
+    def add_analytic_wall(self, node_ints, node_reals, root, invert, e_n, mu):
+        return self._sim.add_analytic_wall(node_ints, node_reals, root, invert,
+                                           self.FACTOR * e_n, mu)
+
+    def set_pair_material(self, a, b, e_n, e_t, mu):
+        self._sim.set_pair_material(a, b, self.FACTOR * e_n, e_t, mu)
+
+
+def _planted_dem(cls, name):
+    from .dem_backends import PageApiBackend, _numba_thread_counts, _numba_threads
+    return PageApiBackend(cls, _numba_threads, name=name, thread_counts=_numba_thread_counts())
+
+
+def nondeterministic_dem_backend():
+    """Factory (``--peclet-dem-backend``): :class:`NondeterministicSimulation`."""
+    return _planted_dem(NondeterministicSimulation, "planted: nondeterministic at one thread")
+
+
+def dropping_contacts_dem_backend():
+    """Factory (``--peclet-dem-backend``): :class:`DroppingContactsSimulation`."""
+    return _planted_dem(DroppingContactsSimulation, "planted: drops contacts (small buffer)")
+
+
+def restitution_off_dem_backend():
+    """Factory (``--peclet-dem-backend``): :class:`RestitutionOffSimulation`."""
+    return _planted_dem(RestitutionOffSimulation, "planted: restitution 5 % low")
+
+
+class OverclaimingVolumeMassBackend:
+    """Planted: peclet's quadrature with every volume 1e-4 (relative) too large, while it
+    claims a volume error of 1e-8 of the volume."""
+
+    name = "planted: volume 1e-4 off, claims 1e-8"
+
+    def __init__(self):
+        from .mass_backends import PecletMassBackend
+        self._ref = PecletMassBackend(claim="estimate")
+        self.resolutions, self.order, self.constant = (self._ref.resolutions, self._ref.order,
+                                                       self._ref.constant)
+
+    def mass_properties(self, node_ints, node_reals, root, lo, hi, resolution_or_tol):
+        v, com, inertia, claimed = self._ref.mass_properties(node_ints, node_reals, root, lo,
+                                                             hi, resolution_or_tol)
+        return v * (1.0 + 1e-4), com, inertia, {"volume": 1e-8 * v,
+                                                "inertia": claimed["inertia"]}
+
+
+def overclaiming_mass_backend():
+    """Factory (``--peclet-mass-backend``): :class:`OverclaimingVolumeMassBackend`."""
+    return OverclaimingVolumeMassBackend()

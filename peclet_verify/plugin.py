@@ -11,7 +11,14 @@ Options (group "peclet"):
   --peclet-compare PATH     fail when a certificate regressed against that previous report
   --peclet-xfails PATH      declared known deviations (TOML or JSON: certificate -> reason)
   --peclet-replay DIR       re-run only the examples saved in that example database
-                            (read-only; e.g. the last nightly's .hypothesis/examples)
+                            (read-only; e.g. the last nightly's .hypothesis/examples); a
+                            database with no examples is a usage error, and a replay whose
+                            certificates re-ran no example fails the run (it certified
+                            nothing)
+  --peclet-dem-backend SPEC   "module:factory" DEM engine to certify (default: the
+                            ``pytest_peclet_make_dem_backend`` hook, else peclet.dem)
+  --peclet-mass-backend SPEC  "module:factory" mass-property engine to certify (default: the
+                            ``pytest_peclet_make_mass_backend`` hook, else peclet's quadrature)
 
 Every option is checked when pytest starts (a one-line usage error naming the option and the
 file), before any certificate runs. Fixtures: ``peclet_backend`` (the engine under
@@ -31,6 +38,9 @@ import importlib.util
 import os
 
 import pytest
+
+# the DEM and mass-property families' fixtures (pytest and stdlib only at import)
+from .family_fixtures import check_family_options, peclet_dem_backend, peclet_mass_backend  # noqa: F401,E501
 
 PROFILES = ("dev", "ci", "nightly", "smoke")  # = peclet_verify.profiles.PROFILES (a test checks)
 USER_PROPERTY = "peclet_certificate"
@@ -66,6 +76,13 @@ _OPTIONS = (
     ("--peclet-replay", "DIR",
      "re-run only the examples saved in the example database DIR (read-only, nothing "
      "generated), e.g. the last nightly's"),
+    ("--peclet-dem-backend", "MODULE:FACTORY",
+     "DEM engine to certify: factory() returns an object with run(scenario, threads) "
+     "(default: the pytest_peclet_make_dem_backend hook, else peclet.dem)"),
+    ("--peclet-mass-backend", "MODULE:FACTORY",
+     "mass-property engine to certify: factory() returns an object with mass_properties(...), "
+     "resolutions and order (default: the pytest_peclet_make_mass_backend hook, else peclet's "
+     "quadrature)"),
 )
 
 _NEEDS_CERTIFY = tuple(flag for flag, _, _ in _OPTIONS[1:])
@@ -108,13 +125,28 @@ def _check_options(config):
         spec = config.getoption("--peclet-backend")
         if spec is not None:
             _check_backend_spec(spec)
+        check_family_options(config)  # --peclet-dem-backend, --peclet-mass-backend
         replay = config.getoption("--peclet-replay")
         if replay is not None:
             from .profiles import check_replay_dir
             check_replay_dir(replay)
+            if _count_examples(replay) == 0:
+                raise ValueError(f"--peclet-replay {replay}: the example database holds no "
+                                 "examples (a replay of it would certify nothing)")
     except ValueError as exc:
         raise pytest.UsageError(str(exc).splitlines()[0]) from None
     return state
+
+
+def _count_examples(path) -> int:
+    """Saved examples in a directory-based Hypothesis database (files under its key
+    directories; hidden files such as metadata are not examples)."""
+    n = 0
+    for root, dirs, files in os.walk(path):
+        dirs[:] = [d for d in dirs if not d.startswith(".")]
+        if os.path.abspath(root) != os.path.abspath(path):
+            n += sum(1 for f in files if not f.startswith("."))
+    return n
 
 
 def _check_backend_spec(spec):
@@ -233,7 +265,7 @@ def peclet_certificate(request):
 
     def record(result):
         cert = dict(test=request.node.nodeid, **result.to_dict())
-        if not result.passed and result.status not in ("n/a", "unavailable"):
+        if not result.passed and result.status not in ("n/a", "unavailable", "not claimed"):
             cert["status"] = "failed"  # passed=False decides, whatever status was left at
         waiver = find_waiver(state["waivers"], cert)
         cert["waived"] = waiver.reason if waiver else None
@@ -272,6 +304,8 @@ def _verdict(c) -> str:
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
     state = config.stash.get(_STATE, None)
+    if state and state.get("replay_empty"):
+        terminalreporter.write_sep("=", state["replay_empty"], red=True)
     if not state or not state["rows"]:
         return
     tr = terminalreporter
@@ -287,7 +321,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
         v = _verdict(c)
         tr.write_line(f"{label[:44]:<44} {c['examples']:>8}  {fig[:44]:<44} {v:<11}",
                       red=v == "FAILED", green=v == "PASSED",
-                      yellow=v in ("UNAVAILABLE", "N/A", "WAIVED"))
+                      yellow=v in ("UNAVAILABLE", "N/A", "WAIVED", "NOT CLAIMED"))
     for c in state["rows"]:
         if c["status"] == "failed":
             tr.write_sep("-", f"counterexample: {c['name']}" +
@@ -323,6 +357,15 @@ def pytest_sessionfinish(session, exitstatus):
     if any(c["status"] == "failed" and not c.get("waived") for c in rows) \
             and session.exitstatus == 0:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+    replay = config.getoption("--peclet-replay")
+    if replay is not None and config.getoption("--peclet-certify") \
+            and sum(int(c.get("examples") or 0) for c in rows) == 0:
+        # a replay that re-ran no example certified nothing: it must not pass
+        state["replay_empty"] = (f"--peclet-replay {replay}: no certificate re-ran a saved "
+                                 f"example ({len(rows)} certificate(s) ran): nothing was "
+                                 "certified")
+        if session.exitstatus in (0, pytest.ExitCode.NO_TESTS_COLLECTED):
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
     if state["baseline"] is not None:
         from .report import compare
         state["compare"] = compare(state["baseline"], rows)

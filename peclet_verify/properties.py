@@ -5,7 +5,7 @@ result with its measured figure; :func:`search` runs a property over a Hypothesi
 keeps the worst figure and, on failure, the shrunk counterexample (a runnable snippet).
 Nothing here needs pytest.
 
-Conventions: phi < 0 inside (DESIGN.md §2); "slack" of Equation 1 is
+Conventions: phi < 0 inside (docs/architecture.md §2); "slack" of Equation 1 is
 ``phi(p) - (|p - c| - r)`` (must be >= 0 for a certified root); distances are in the tree's
 length unit; relative errors are dimensionless.
 """
@@ -278,10 +278,11 @@ def equation1(recipe: TreeRecipe, backend=None, n: int = 256, claimed_by: str = 
     """Equation 1, ``phi(p) >= |p - c| - r``, at ``n`` points outside the root's ball.
 
     The ball and the ``certified`` claim come from ``backend.bound`` when the backend has one
-    (``claimed_by="backend"``), else from the reference rule (DESIGN.md §3). Applies only to
-    trees claimed certified (status "n/a" otherwise). Figure: minimum slack (>= -tol * (1 + r)
-    passes); the violation rate is in ``details``. An unusable answer from ``evaluate`` or
-    ``bound`` (see :mod:`peclet_verify.answers`) fails, with the answer in the text.
+    (``claimed_by="backend"``), else from the reference rule (docs/architecture.md §4). Applies
+    only to trees claimed certified (status "n/a" otherwise). Figure: minimum slack
+    (>= -tol * (1 + r) passes); the violation rate is in ``details``. An unusable answer from
+    ``evaluate`` or ``bound`` (see :mod:`peclet_verify.answers`) fails, with the answer in the
+    text.
     """
     backend = check_backend(backend or ReferenceBackend())
     b, root, ni, nr = _encode(recipe)

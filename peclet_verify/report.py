@@ -28,8 +28,20 @@ SUITE_CERTIFICATES = ("equation1 (reference rule)", "equation1 (backend claims)"
 #: The certificates this repository's ``properties/`` adds (they certify peclet itself).
 REPO_CERTIFICATES = ("distance agreement (program vs tree walk)", "quadrature convergence",
                      "determinism (1 thread twice, 2 threads)", "buffer growth")
+#: The DEM family's certificates (:mod:`peclet_verify.dem_suite`, any DEM backend) and their
+#: properties (:mod:`peclet_verify.mechanics`).
+DEM_CERTIFICATES = ("determinism at one thread (DEM backend)",
+                    "determinism across threads (DEM backend)", "buffer growth (DEM backend)",
+                    "binary restitution", "slide to roll", "incline stick/slip",
+                    "free rigid body")
+DEM_PROPERTY_NAMES = ("determinism_one_thread", "determinism_across_threads", "incline",
+                      "slide_to_roll", "binary_restitution", "free_rigid_body")
+#: The mass-property family's certificate (:mod:`peclet_verify.mass_suite`).
+MASS_CERTIFICATES = ("mass properties (closed forms)",)
 #: Names an xfails file may use: a certificate's name or a property's (all its certificates).
-KNOWN_CERTIFICATES = frozenset(PROPERTY_NAMES + SUITE_CERTIFICATES + REPO_CERTIFICATES)
+KNOWN_CERTIFICATES = frozenset(PROPERTY_NAMES + SUITE_CERTIFICATES + REPO_CERTIFICATES +
+                               DEM_CERTIFICATES + DEM_PROPERTY_NAMES + MASS_CERTIFICATES +
+                               ("mass_properties",))
 
 
 class ReportFileError(ValueError):
@@ -129,6 +141,7 @@ TOLERANCES = {
     "sign disagreement rate": (1.0, 0.0),  # any disagreement at all is already a failure
     "distinct state hashes": (1.0, 1.0),   # determinism: more than one hash
     "differing contact sets": (1.0, 0.0),  # buffer growth: any
+    "error / allowed": (1.0, 1.0),         # mechanics, mass properties: over 1 already fails
 }
 DEFAULT_TOLERANCE = (10.0, 1e-12)
 

@@ -6,9 +6,9 @@ inside each leaf's accepted range, quaternions are unit, scales positive), so no
 rejected; it shrinks towards a single leaf with an identity transform; and ``repr(recipe)`` /
 ``recipe.snippet()`` is a runnable Python snippet that rebuilds the failing tree.
 
-Conventions follow DESIGN.md §2: phi < 0 inside, quaternions (x, y, z, w) active, a node's
-value in its parent frame is ``s * f(R^T (p - t) / s)``. Lengths are in the builder's unit;
-the default parameter ranges give solids about one unit across.
+Conventions follow docs/architecture.md §2: phi < 0 inside, quaternions (x, y, z, w) active, a
+node's value in its parent frame is ``s * f(R^T (p - t) / s)``. Lengths are in the builder's
+unit; the default parameter ranges give solids about one unit across.
 
 >>> from hypothesis import given
 >>> from peclet_verify import strategies as pst

@@ -36,7 +36,7 @@ WALL = _tree("box", (5.0, 1.0, 5.0), translation=[0.0, -1.5, 0.0])
 
 
 def _wall(**kw):
-    args = dict(node_ints=WALL[0], node_reals=WALL[1], root=WALL[2], invert=False, e=0.5, mu=0.5)
+    args = dict(node_ints=WALL[0], node_reals=WALL[1], root=WALL[2], invert=False, e_n=0.5, mu=0.5)
     args.update(kw)
     return lambda s: s.add_analytic_wall(**args)
 
@@ -58,8 +58,8 @@ BAD_CALLS = [
     ("periodicity None", _call("enable_periodicity", False, False, None), "pz"),
     ("wall invert 'no'", _wall(invert="no"), "invert"),
     ("wall invert 0", _wall(invert=0), "invert"),
-    ("wall e 1.5", _wall(e=1.5), "e"),
-    ("wall e nan", _wall(e=np.nan), "e"),
+    ("wall e_n 1.5", _wall(e_n=1.5), "e_n"),
+    ("wall e_n nan", _wall(e_n=np.nan), "e_n"),
     ("wall mu -3", _wall(mu=-3.0), "mu"),
     ("wall mu inf", _wall(mu=np.inf), "mu"),
     ("wall root 5", _wall(root=5), "root"),
@@ -225,7 +225,18 @@ BAD_SAVES = [
     ("wall invert 0.5", _with("wall0_prm", lambda a: _set(a, 0, 0.5)), "wall0_prm"),
     ("wall friction -1", _with("wall0_prm", lambda a: _set(a, 2, -1.0)), "mu"),
     ("iterations 1e9", _mutated(iters=np.array([10 ** 9, 8], np.int64)), "position"),
-    ("version 2", _mutated(version=np.int64(2)), "version"),
+    ("version 3", _mutated(version=np.int64(3)), "version"),
+    ("version 1 with the version 2 keys", _mutated(version=np.int64(1)), "keys"),
+    ("version 0", _mutated(version=np.int64(0)), "version"),
+    ("non-unit wall quaternion", _with("wall_motion", lambda a: _set(a, (0, 6), 2.0)),
+     "wall_motion"),
+    ("nan wall velocity", _with("wall_motion", lambda a: _set(a, (0, 7), np.nan)),
+     "wall_motion"),
+    ("material id 5000", _with("material_ids", lambda a: _set(a, 0, 5000)), "ids"),
+    ("pair restitution 2", _mutated(pair_materials=np.array([[0.0, 1.0, 2.0, 0.0, 0.5]])),
+     "e_n"),
+    ("external forces of 2 rows for 3 bodies", _mutated(ext_force=np.zeros((2, 3))),
+     "ext_force"),
     ("periodic as strings", _mutated(periodic=np.array(["True"] * 3)), "periodic"),
     ("domain (1, 3)", _with("domain", lambda a: a[:1]), "domain"),
     ("dt -1", _mutated(dt=np.array([-1.0])), "dt"),

@@ -4,6 +4,8 @@ import math
 import numpy as np
 import pytest
 
+from peclet.core.validation import PecletArgumentError
+
 from peclet.packing import analysis as A
 from peclet.packing import elements as E
 from peclet.packing.freeze import Pack
@@ -84,14 +86,13 @@ def test_coordination_both_ways_and_overlap_depth():
     r = 0.505
     P = np.array([[0.5, 0.6, 1.0], [1.5, 0.6, 1.0]])
     geo = A.PackGeometry(sphere_pack(P, r, [2.0, 2.0]))
-    c = A.contacts(geo)
-    assert c["counts"].tolist() == [2, 2]
-    assert c["rattlers"] == 0
+    c = A.probe_overlap(geo)
+    assert c["probe_counts"].tolist() == [2, 2]
     assert c["max_depth"] == pytest.approx(2 * r - 1.0, abs=1e-12)   # axis probes are exact
     # pulled apart to a gap: no contact, nothing deeper than zero
     P2 = np.array([[0.5, 0.6, 1.0], [1.5, 0.6, 1.0]])
-    c2 = A.contacts(A.PackGeometry(sphere_pack(P2, 0.49, [2.0, 2.0])))
-    assert c2["counts"].tolist() == [0, 0] and c2["rattlers"] == 2 and c2["max_depth"] == 0.0
+    c2 = A.probe_overlap(A.PackGeometry(sphere_pack(P2, 0.49, [2.0, 2.0])))
+    assert c2["probe_counts"].tolist() == [0, 0] and c2["max_depth"] == 0.0
 
 
 def test_contact_seen_only_one_way_is_counted():
@@ -107,8 +108,8 @@ def test_contact_seen_only_one_way_is_counted():
     geo = A.PackGeometry(pk)
     j = int(np.flatnonzero((geo.owner == 1) & np.all(geo.img_pos == P[1], axis=1))[0])
     assert geo.probe_min([0], [j])[0] > 0               # body 0's probes all miss body 1
-    c = A.contacts(geo)
-    assert c["counts"].tolist() == [1, 1]
+    c = A.probe_overlap(geo)
+    assert c["probe_counts"].tolist() == [1, 1]
     assert c["max_depth"] == pytest.approx(r - (dist - r), abs=1e-12)
 
 
@@ -134,9 +135,13 @@ def test_floor_and_box():
 
 
 def test_bulk_windows_are_the_pages_and_scale_down_for_shallow_beds():
-    pk = sphere_pack(np.array([[0.5, 0.5, 0.5], [0.5, 5.53, 0.5]]), 0.1, [2, 2])
+    # a column of spheres from y = 0.5 to 5.53 (the windows need elements inside them)
+    col = np.c_[np.full(12, 0.5), np.linspace(0.5, 5.53, 12), np.full(12, 0.5)]
+    pk = sphere_pack(col, 0.3, [2, 2])
     w, s = A.bulk_windows(pk)
     assert s == 1.0 and np.allclose(w, [(1.0, 4.73), (0.8, 4.93), (1.2, 4.53)], atol=1e-12)
+    with pytest.raises(PecletArgumentError, match="^pack "):     # nothing reaches a window
+        A.bulk_windows(sphere_pack(np.array([[0.5, 0.5, 0.5], [0.5, 5.53, 0.5]]), 0.1, [2, 2]))
     pk = sphere_pack(np.array([[0.5, 0.5, 0.5], [0.5, 1.5, 0.5]]), 0.1, [2, 2])
     w, s = A.bulk_windows(pk)
     assert s < 1 and all(b - a >= 0.75 - 1e-12 for a, b in w)
@@ -158,8 +163,8 @@ def test_analysis_is_bitwise_identical_at_one_and_two_threads():
         numba.set_num_threads(t)
         geo = A.PackGeometry(pk)
         r = A.cover_fractions(geo, (0.5, 2.5), n_samples=50_000, seed=0)
-        c = A.contacts(geo)
-        out.append((r["eps"], r["f_env"], r["double"], c["counts"].tolist(), c["max_depth"]))
+        c = A.probe_overlap(geo)
+        out.append((r["eps"], r["f_env"], r["double"], c["probe_counts"].tolist(), c["max_depth"]))
     numba.set_num_threads(cap)
     assert all(o == out[0] for o in out)
 

@@ -148,3 +148,162 @@ def test_bad_arguments_are_named_and_nothing_is_written(rings, tmp_path):
     with pytest.raises(PecletArgumentError, match="element"):
         E.write_transforms_csv(tmp_path / "t.csv", pack, "a,b")
     assert list(tmp_path.iterdir()) == []
+
+
+# ---- export resolution and layouts (issue 26, item 5) ---------------------------------------
+
+#: Stated tolerance on the enclosed volume of a Pall ring at the default resolution (measured
+#: -0.9 %) and at the coarse 400 triangles (measured about -1.5 %), relative to the exact volume.
+VOL_TOL_DEFAULT = 0.02
+VOL_TOL_COARSE = 0.04
+
+
+@pytest.fixture(scope="module")
+def ring_bed():
+    """Four Pall rings at random poses, ring_volume the quadrature volume (D = 1)."""
+    el = pall_ring()
+    vol = el.builder.body_properties(el.root, *el.bounds).volume
+    q = np.random.default_rng(11).normal(size=(4, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    pos = np.array([[0.0, 0.8, 0.0], [1.5, 0.8, 0.0], [0.0, 0.8, 1.5], [1.5, 2.3, 1.5]])
+    ni, nr, _, _ = el.builder.encode()
+    pack = Pack(pos, q, (50.0, 50.0), vol, ni, nr, el.root, math.hypot(0.5, 0.5) + 1e-9,
+                np.zeros((1, 3)), 1.0, [1.0, 1.0, 1.0], -1, float("nan"))
+    return el, pack, vol, E.export_mesh(pack, min_feature=el.min_feature)
+
+
+def _solids(directory):
+    return sorted(p.name for p in directory.iterdir())
+
+
+def test_default_resolution_per_element_files_are_watertight_with_the_volume(ring_bed,
+                                                                             tmp_path):
+    el, pack, vol, (v0, f0, info) = ring_bed
+    assert E.DEFAULT_RESOLUTION == "1000tri" and info["resolution"] == "1000tri"
+    assert info["triangles"] == len(f0) == 1000 and info["watertight"]
+    assert abs(info["volume_rel_error"]) <= VOL_TOL_DEFAULT
+    out = E.write_stl_files(tmp_path / "bed_stl", pack, home_mesh=(v0, f0))
+    names = [f"element_{i}.stl" for i in range(pack.n)]
+    assert out["files"] == names == _solids(tmp_path / "bed_stl")
+    t = E.read_transforms_csv(E.write_transforms_csv(tmp_path / "t.csv", pack))
+    for i, nm in enumerate(names):
+        p = tmp_path / "bed_stl" / nm
+        assert p.stat().st_size == 84 + 50 * 1000  # binary STL
+        m = trimesh.load(str(p))  # vertices merged on load, as a CFD mesher reads it
+        assert m.is_watertight and m.is_winding_consistent and len(m.faces) == 1000
+        assert abs(m.volume - vol) <= VOL_TOL_DEFAULT * vol
+        vh = _home(m.vertices, t["positions"][i], t["quaternions"][i])
+        # the chord error is what export_mesh reported (float32 rounding aside)
+        assert _deviation(el.builder, el.root, vh, m.faces) <= info["chord_error"] + 1e-5
+
+
+def test_coarse_budget_and_chord_error_are_followed_and_stay_closed(ring_bed, tmp_path):
+    el, pack, vol, (_, _, default) = ring_bed
+    coarse = E.export_mesh(pack, "400tri", min_feature=el.min_feature)
+    fine = E.export_mesh(pack, "2000tri", min_feature=el.min_feature)
+    assert len(coarse[1]) == 400 and len(fine[1]) == 2000
+    for v, f, info in (coarse, fine):
+        assert info["watertight"] and trimesh.Trimesh(v, f, process=False).is_watertight
+    assert abs(coarse[2]["volume_rel_error"]) <= VOL_TOL_COARSE
+    assert fine[2]["chord_error"] <= coarse[2]["chord_error"]
+    # a chord error: the mesh keeps within it, with fewer triangles for a looser one
+    v, f, info = E.export_mesh(pack, "0.02D", min_feature=el.min_feature)
+    assert info["chord_error"] <= 0.02
+    assert _deviation(el.builder, el.root, v, f) <= 0.02
+    assert info["triangles"] < default["triangles"] * 1.2
+    assert abs(info["volume_rel_error"]) <= VOL_TOL_COARSE
+    # same arguments, same mesh
+    v2, f2, _ = E.export_mesh(pack, 0.02, min_feature=el.min_feature)
+    assert np.array_equal(v, v2) and np.array_equal(f, f2)
+    # written at the coarse budget and read back: per element closed, 400 triangles each
+    E.write_stl(tmp_path / "c.stl", pack, home_mesh=coarse[:2])
+    tri = trimesh.load(str(tmp_path / "c.stl"), process=False).triangles
+    for k in range(pack.n):
+        m = trimesh.Trimesh(tri[400 * k:400 * (k + 1)].reshape(-1, 3),
+                            np.arange(1200).reshape(-1, 3))
+        assert m.is_watertight and abs(m.volume - vol) <= VOL_TOL_COARSE * vol
+
+
+def test_vtu_at_the_resolution_and_default_sizes_for_1000_elements(ring_bed, tmp_path):
+    _, pack, _, (v0, f0, _) = ring_bed
+    info = E.write_vtu(tmp_path / "bed.vtu", pack, home_mesh=(v0, f0))
+    vt = meshio.read(tmp_path / "bed.vtu")
+    ids = vt.cell_data_dict["element_id"]["triangle"]
+    assert len(vt.cells_dict["triangle"]) == info["n_triangles"] == 1000 * pack.n
+    assert np.array_equal(np.bincount(ids), np.full(pack.n, 1000))
+    for k in range(pack.n):  # each element's cells close on the VTU's shared points
+        m = trimesh.Trimesh(vt.points, vt.cells_dict["triangle"][ids == k])
+        assert m.is_watertight
+    s = E.write_stl(tmp_path / "bed.stl", pack, home_mesh=(v0, f0))
+    # the README's figure: 1000 elements at the default, STL 50 bytes a triangle exactly and
+    # the VTU (zlib) under 30 bytes a triangle here (22.5 MB measured for 1000 Pall rings)
+    assert s["bytes"] == 84 + 50 * 1000 * pack.n
+    assert info["bytes"] / info["n_triangles"] < 30
+    assert 84 + 50 * 1000 * 1000 + 30 * 1000 * 1000 < 100e6
+
+
+def test_per_element_layout_with_a_container_and_rewrite(ring_bed, tmp_path):
+    _, pack, _, (v0, f0, _) = ring_bed
+    b = geom.SceneBuilder()
+    wall = b.add_difference(b.add_leaf("box", [50.0, 50.0, 50.0]),
+                            b.add_leaf("cone", [3.0, 3.0, 60.0]))
+    box = (b, wall, np.array([-3.5, -0.5, -3.5]), np.array([3.5, 3.0, 3.5]))
+    d = tmp_path / "bed_stl"
+    E.write_stl_files(d, pack, home_mesh=(v0, f0),
+                      container=box, container_spacing=0.25, name="ring")
+    assert _solids(d) == ["container.stl"] + [f"ring_{i}.stl" for i in range(pack.n)]
+    assert trimesh.load(str(d / "container.stl")).is_watertight
+    E.write_stl_files(d, pack, home_mesh=(v0, f0))  # replaces the set whole
+    assert _solids(d) == [f"element_{i}.stl" for i in range(pack.n)]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".peclet")]
+    # the container decimated to a budget stays closed, meshed once for the VTU
+    full = E.container_mesh(*box, spacing=0.25)
+    cv, cf = E.container_mesh(*box, spacing=0.25, max_triangles=len(full[1]) // 8)
+    cm = trimesh.Trimesh(cv, cf, process=False)
+    assert len(cf) <= len(full[1]) // 8 and cm.is_watertight
+    assert cm.volume == pytest.approx(trimesh.Trimesh(*full).volume, rel=0.02)
+    E.write_vtu(tmp_path / "c.vtu", pack, container=(cv, cf), home_mesh=(v0, f0))
+    ids = meshio.read(tmp_path / "c.vtu").cell_data_dict["element_id"]["triangle"]
+    assert np.sum(ids == -1) == len(cf)
+
+
+@pytest.mark.parametrize("bad", [-0.01, 0.0, float("nan"), float("inf"), 0.001, 0.5, "abc",
+                                 "", "10tri", "0tri", "-5tri", "1.5tri", "1e9tri", True,
+                                 None, [0.01]])
+def test_bad_resolutions_are_refused_naming_the_argument(ring_bed, tmp_path, bad):
+    _, pack, _, hm = ring_bed
+    with pytest.raises(PecletArgumentError, match="^resolution must be"):
+        E.parse_resolution(bad)
+    with pytest.raises(PecletArgumentError, match="^resolution must be"):
+        E.write_stl(tmp_path / "x.stl", pack, resolution=bad)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_memory_caps_are_refused_naming_the_argument(ring_bed, tmp_path, monkeypatch):
+    _, pack, _, (v0, f0, _) = ring_bed
+    with pytest.raises(PecletArgumentError, match="stl_resolution.*whole bed"):
+        E.check_bed_triangles(1000, "200000tri", "stl_resolution")
+    E.check_bed_triangles(1000, E.DEFAULT_RESOLUTION)  # the default passes
+    monkeypatch.setattr(E, "MAX_BED_TRIANGLES", 3 * 1000)
+    with pytest.raises(PecletArgumentError, match="^resolution must be at most 3000"):
+        E.write_vtu(tmp_path / "x.vtu", pack, home_mesh=(v0, f0))
+    monkeypatch.setattr(E, "EXPORT_LATTICE_MAX", 64)
+    with pytest.raises(PecletArgumentError, match="memory"):
+        E.export_mesh(pack, "0.01")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_refuses_bad_export_options_in_one_line(tmp_path, capsys):
+    from peclet.cli import main
+
+    for argv, flag in ((["--stl-resolution", "-1"], "--stl-resolution"),
+                       (["--stl-resolution", "nan"], "--stl-resolution"),
+                       (["--stl-resolution", "0"], "--stl-resolution"),
+                       (["--stl-resolution", "5tri"], "--stl-resolution"),
+                       (["--stl-layout", "flat"], "--stl-layout")):
+        with pytest.raises(SystemExit) as exc:
+            main(["pack", "--out", str(tmp_path / "o")] + argv)
+        assert exc.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and flag in err
+    assert list(tmp_path.iterdir()) == []

@@ -37,8 +37,9 @@ def add_parser(sub):
     pr.add_argument("--seeds", required=True,
                     help="start-cloud seeds: e.g. 1-32 or 1-4,10 (integers >= 0)")
     pr.add_argument("--sweep", action="append", default=None, metavar="KEY=V1,V2,...",
-                    help=f"swept parameter, KEY one of {', '.join(SWEEPABLE)}; repeat for "
-                    "a Cartesian product")
+                    help=f"swept parameter, KEY one of {', '.join(SWEEPABLE)} or a numeric "
+                    "parameter of --element (e.g. thickness=0.03,0.06,0.12 for pall_ring; see "
+                    "--element); repeat for a Cartesian product")
     pr.add_argument("--out", required=True, help="output directory (the ledger)")
     pr.add_argument("--scheduler", default=None,
                     help="address of a running Dask scheduler, tcp://HOST:8786 (default: "
@@ -70,14 +71,14 @@ def _number(flag, text, integer):
 
 def _specs(args):
     """(specs, sweep) from the arguments; every error names its flag."""
-    from peclet.core.validation import PecletArgumentError, check_choice, check_int
+    from peclet.core.validation import PecletArgumentError, check_int
     from peclet.ensemble.runner import machine_cores
     from peclet.ensemble.spec import check_field, make_specs, parse_seeds, parse_sweep
-    from peclet.packing.elements import ELEMENTS
+    from peclet.packing.elements import element_text, parse_element
 
     seeds = parse_seeds(args.seeds, "--seeds")
-    sweep = parse_sweep(args.sweep, "--sweep")
-    check_choice("--element", args.element, sorted(ELEMENTS))
+    element = element_text(*parse_element(args.element, "--element"))
+    sweep = parse_sweep(args.sweep, "--sweep", element=element)
     fixed = {}
     for field, flag in _FIXED.items():
         text = getattr(args, field)
@@ -94,8 +95,19 @@ def _specs(args):
             # on this machine a realization cannot use more threads than it has cores
             hi = machine_cores() if local and flag == "--threads" else 4096
             check_int(flag, _number(flag, text, True), 1, hi)
-    specs = make_specs(seeds, sweep, element=args.element, container=args.container,
-                       protocol=args.protocol, **fixed)
+    try:
+        specs = make_specs(seeds, sweep, element=element, container=args.container,
+                           protocol=args.protocol, **fixed)
+    except PecletArgumentError as exc:
+        # a spec field's error (e.g. steps_scale with --protocol rain) names its flag
+        flag = dict(_FIXED, element="--element", container="--container",
+                    protocol="--protocol").get(exc.argument)
+        if flag is None:
+            raise
+        msg = str(exc)
+        out = PecletArgumentError(flag, "", exc.value)
+        out.args = (flag + msg[len(exc.argument):] if msg.startswith(exc.argument) else msg,)
+        raise out from None
     return specs, sweep
 
 

@@ -26,7 +26,10 @@ __all__ = ["add_parser", "run", "OUTPUTS"]
 
 #: What a run writes into --out (an --out holding any of these is another run's).
 OUTPUTS = ("results.json", "pack.npz", "checkpoint", "radial_profile.png", "axial_profile.png",
-           "bed.png", "bed.stl", "bed.vtu", "transforms.csv")
+           "bed.png", "bed.stl", "bed.vtu", "transforms.csv", "bed_stl")
+
+#: The OUTPUTS that are directories (bed_stl/: --stl-layout per-element).
+OUTPUT_DIRS = ("checkpoint", "bed_stl")
 
 
 def add_parser(sub):
@@ -43,13 +46,14 @@ def add_parser(sub):
     p.add_argument("--wall-restitution", default=None,
                    help="wall restitution (default: --restitution)")
     p.add_argument("--seed", default="5", help="generator seed >= 0 (default 5)")
-    p.add_argument("--steps-scale", default="1",
-                   help="page protocol: multiply every step count (default 1)")
-    p.add_argument("--batch", default="1", help="rain: elements per insertion (default 1)")
-    p.add_argument("--insert-every", default="4",
-                   help="rain: steps between insertions (default 4)")
-    p.add_argument("--drop", default="30", help="rain: insertion height above the bed, in D "
-                   "(default 30)")
+    p.add_argument("--steps-scale", default=None,
+                   help="page protocol only: multiply every step count (default 1)")
+    p.add_argument("--batch", default=None,
+                   help="rain only: elements per insertion (default 1)")
+    p.add_argument("--insert-every", default=None,
+                   help="rain only: steps between insertions (default 4)")
+    p.add_argument("--drop", default=None, help="rain only: insertion height above the bed, "
+                   "in D (default 30)")
     p.add_argument("--out", default=None, help="output directory (default ./pack_results; "
                    "with --resume: the resumed run's)")
     p.add_argument("--threads", default=None, help="numba threads (default: numba's)")
@@ -65,8 +69,31 @@ def add_parser(sub):
                    help="Monte Carlo points per bulk window (default 100000; the radial "
                         "profile takes 3 %% of it per 0.02 D shell, at least 500)")
     p.add_argument("--no-figures", action="store_true", help="skip figures and exports")
+    p.add_argument("--stl-resolution", default=None, type=_stl_resolution,
+                   help="element mesh of bed.stl and bed.vtu: a chord error in element "
+                        "diameters D in [0.005, 0.1] (e.g. 0.01 or 0.01D) or a triangle "
+                        "budget per element 'Ntri', N in [100, 200000] (e.g. 2000tri); "
+                        "default 1000tri (1000 Pall rings: STL 50 MB + VTU 23 MB)")
+    p.add_argument("--stl-layout", default="merged", choices=("merged", "per-element"),
+                   help="merged (default): one bed.stl (ASCII, one named solid per element "
+                        "and the container, up to 200 elements; binary, one solid, above); "
+                        "per-element: bed_stl/ with one binary STL per element and "
+                        "container.stl")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
+
+
+def _stl_resolution(text):
+    """--stl-resolution's argparse type: the canonical text (e.g. "1000tri", "0.01D"); a bad
+    value is one line naming the flag, exit 2, before any work."""
+    import argparse
+
+    from peclet.packing.export import parse_resolution
+
+    try:
+        return str(parse_resolution(text, "--stl-resolution"))
+    except PecletArgumentError as exc:
+        raise argparse.ArgumentTypeError(str(exc)[len("--stl-resolution "):]) from None
 
 
 def _num(flag, text, conv, **rng):
@@ -89,10 +116,85 @@ def _renamed(exc, flag):
     return out
 
 
+#: Options only one protocol uses: given with the other, they are refused (as ``peclet
+#: ensemble`` refuses ``--steps-scale`` with rain), never silently ignored.
+PROTOCOL_OPTIONS = {"--steps-scale": ("steps_scale", "page"), "--batch": ("batch", "rain"),
+                    "--insert-every": ("insert_every", "rain"), "--drop": ("drop", "rain")}
+
+#: Most Monte Carlo points per bulk window: each costs about 100 bytes at the sampling's peak
+#: (coordinates, the counts, the window's temporaries), so 10^7 are about 1 GB.
+SAMPLES_MAX = 10_000_000
+BYTES_PER_SAMPLE = 100
+
+
+def _protocol_options(args):
+    """Refuse an option the chosen protocol does not use (one line naming it)."""
+    for flag, (dest, proto) in PROTOCOL_OPTIONS.items():
+        if getattr(args, dest) is not None and args.protocol != proto:
+            raise PecletArgumentError(flag, f"given only with --protocol {proto} (the "
+                                      f"{args.protocol} protocol does not use it)",
+                                      getattr(args, dest))
+
+
+def _missing_file(flag, path, what):
+    """PecletArgumentError naming ``flag`` when ``path`` does not exist."""
+    if not os.path.exists(path):
+        raise PecletArgumentError(flag, what, path, "it does not exist")
+
+
+def _bed_rules(element, container, count, proto, seed):
+    """The checks that need the element's size but not its measurement (a second or two):
+    the container fits the element and the start cloud (page protocol: ``PageProtocol.start``)
+    stays in it, the page's start cloud lands before the quench (``check_landing``, the rule
+    of ``peclet pall-ring``), and the count forms a bed: at least one element per D^2 of the
+    container's cross-section (fewer cannot cover the floor once: a film whose bulk window
+    holds next to nothing). Errors name the CLI flags."""
+    import numpy as np
+
+    from peclet.packing import api
+    from peclet.packing.protocols import Body
+
+    el = api._resolve_element(element)
+    d = api._diameter(el)
+    cont = api.parse_container(container).bound(d)
+    c0, r0, _ = el.builder.node_bound(el.root)
+    ctx = dict(container=cont, body=Body(-1, 1.0, np.ones(3), float(np.linalg.norm(c0) + r0),
+                                         d), count=count)
+    try:
+        _, _, _, top = proto.start(ctx, np.random.default_rng(seed))
+        if proto.kind == "page":
+            proto.check_landing(ctx, top, "--count")
+    except PecletArgumentError as exc:
+        raise _renamed(exc, {"count": "--count", "container": "--container"}.get(
+            exc.argument, exc.argument)) from None
+    layer = cont.cross_area() / (d * d)
+    if cont.kind != "tree" and count < layer:
+        raise PecletArgumentError(
+            "--count", f">= {int(np.ceil(layer))} for {cont.label()} (the bed rule: at least "
+            "one element per D^2 of the cross-section, a bed about one element deep; fewer "
+            "is a film)", count, f"cross-section {layer:.4g} D^2")
+
+
+def _landed(res, out):
+    """The landing rule after the run (``protocols``): True if the bed landed; otherwise the
+    pack is saved to OUT/pack.npz, one error line says why and the bed is not analysed."""
+    from peclet.packing.api import landing_message
+    from peclet.packing.freeze import save_pack
+
+    rec = res.state.landing
+    if rec is None or rec["landed"]:
+        return True
+    os.makedirs(out, exist_ok=True)
+    save_pack(os.path.join(out, "pack.npz"), res.pack)
+    print(f"peclet pack: error: {landing_message(rec)}; not analysed (the state is in "
+          f"{os.path.join(out, 'pack.npz')})", file=sys.stderr)
+    return False
+
+
 def _check_out(out, overwrite, resuming_from=None):
     """(absolute --out, an earlier run's outputs in it) after the shared output-directory
     checks; a resumed run's own checkpoint does not count as another run's."""
-    return check_output_dir(out, OUTPUTS, overwrite, "--out", dirs=("checkpoint",),
+    return check_output_dir(out, OUTPUTS, overwrite, "--out", dirs=OUTPUT_DIRS,
                             keep=(resuming_from,))
 
 
@@ -103,8 +205,15 @@ def run(args):
     threads = None if args.threads is None else _num("--threads", args.threads, int, lo=1)
     every = _num("--checkpoint-every", args.checkpoint_every, int, lo=1)
     args.samples = _num("--samples", args.samples, int, lo=1000)
+    if args.samples > SAMPLES_MAX:
+        raise PecletArgumentError("--samples", f"an integer in [1000, {SAMPLES_MAX}]",
+                                  args.samples, f"about {BYTES_PER_SAMPLE} bytes per sample "
+                                  f"at the sampling's peak: {SAMPLES_MAX} is about "
+                                  f"{SAMPLES_MAX * BYTES_PER_SAMPLE / 1e9:g} GB")
     if args.resume is not None:
         cdir = args.resume
+        _missing_file("--resume", cdir, "a pack checkpoint directory (an interrupted run's "
+                      "--out or its checkpoint/)")
         if not ckpt.is_checkpoint(cdir) and ckpt.is_checkpoint(os.path.join(cdir, "checkpoint")):
             cdir = os.path.join(cdir, "checkpoint")
         if not ckpt.is_checkpoint(cdir):
@@ -119,10 +228,21 @@ def run(args):
                              checkpoint_every=every)
         except PecletArgumentError as exc:
             raise _renamed(exc, "--resume") from None
+        if not _landed(res, out):
+            return 1
         return _finish(res, out, args, cdir, previous)
 
     # ---- every check before the element is built
     count = _num("--count", args.count, int, lo=1)
+    try:
+        api._check_run_args(count, 0, None, True, None, None, None, name="--count")
+    except PecletArgumentError as exc:
+        raise _renamed(exc, "--count") from None
+    if not args.no_figures:      # the whole bed's export size, before the run
+        from peclet.packing import export
+
+        export.check_bed_triangles(count, args.stl_resolution or export.DEFAULT_RESOLUTION,
+                                   "--stl-resolution")
     seed = _num("--seed", args.seed, int, lo=0)
     mu = _num("--mu", args.mu, float, lo=0.0)
     wmu = mu if args.wall_mu is None else _num("--wall-mu", args.wall_mu, float, lo=0.0)
@@ -130,9 +250,14 @@ def run(args):
     we = e if args.wall_restitution is None else _num("--wall-restitution",
                                                       args.wall_restitution, float, lo=0.0,
                                                       hi=1.0)
-    scale = _num("--steps-scale", args.steps_scale, float, lo=0.0, lo_open=True)
     if args.protocol not in ("page", "rain"):
         raise PecletArgumentError("--protocol", "one of 'page', 'rain'", args.protocol)
+    _protocol_options(args)
+    scale = 1.0 if args.steps_scale is None else _num("--steps-scale", args.steps_scale,
+                                                       float, lo=0.0, hi=100.0, lo_open=True)
+    if isinstance(args.element, str) and args.element.endswith(".npz"):
+        _missing_file("--element", args.element, "a flat-encoding .npz (node_ints, "
+                      "node_reals, root)")
     for flag, value, parse in (("--element", args.element, api._resolve_element),
                                ("--container", args.container, api.parse_container)):
         try:
@@ -140,14 +265,16 @@ def run(args):
         except PecletArgumentError as exc:
             raise _renamed(exc, flag) from None
     out, previous = _check_out(args.out or "pack_results", args.overwrite)
-    batch = _num("--batch", args.batch, int, lo=1)
-    every_k = _num("--insert-every", args.insert_every, int, lo=1)
-    drop = _num("--drop", args.drop, float, lo=0.0)
+    batch = _num("--batch", "1" if args.batch is None else args.batch, int, lo=1)
+    every_k = _num("--insert-every", "4" if args.insert_every is None else args.insert_every,
+                   int, lo=1)
+    drop = _num("--drop", "30" if args.drop is None else args.drop, float, lo=0.0)
     proto = api.parse_protocol(args.protocol)
     if args.protocol == "page" and scale != 1.0:
         proto = proto.scaled(scale)
     if args.protocol == "rain":
         proto = dataclasses.replace(proto, batch=batch, insert_every=every_k, drop=drop)
+    _bed_rules(args.element, args.container, count, proto, seed)
     cdir = os.path.join(out, "checkpoint")
     if args.overwrite and os.path.isdir(cdir):   # the rest is replaced when the run is done
         shutil.rmtree(cdir)
@@ -161,6 +288,8 @@ def run(args):
         if flag is None:
             raise
         raise _renamed(exc, flag) from None
+    if not _landed(res, out):
+        return 1
     return _finish(res, out, args, cdir, previous)
 
 
@@ -173,9 +302,21 @@ def _finish(res, out, args, cdir, previous):
     # run; the one this run wrote is handled below)
     clear_outputs(out, tuple(f for f in previous if f != "checkpoint"))
     save_pack(os.path.join(out, "pack.npz"), res.pack)
-    report = bed_report.analyse(res, out, figures=not args.no_figures,
-                                exports=not args.no_figures, samples=args.samples,
-                                shell_samples=max(500, args.samples * 3 // 100))
+    from peclet.packing import export
+
+    stl_res = getattr(args, "stl_resolution", None) or export.DEFAULT_RESOLUTION
+    try:
+        if not args.no_figures:
+            export.check_bed_triangles(res.pack.n, stl_res, "stl_resolution")
+        report = bed_report.analyse(res, out, figures=not args.no_figures,
+                                    exports=not args.no_figures, samples=args.samples,
+                                    shell_samples=max(500, args.samples * 3 // 100),
+                                    stl_resolution=stl_res,
+                                    stl_layout=getattr(args, "stl_layout", "merged"))
+    except PecletArgumentError as exc:
+        if exc.argument != "stl_resolution":
+            raise
+        raise _renamed(exc, "--stl-resolution") from None
     bed_report.write_results(os.path.join(out, "results.json"), res, report)
     if not args.keep_checkpoint and os.path.isdir(cdir):
         shutil.rmtree(cdir)

@@ -341,7 +341,6 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
     reps = np.empty(MAX_CLUSTERS, np.int64)
     pose = np.empty(POSE)
     xb = np.empty(3)
-    ident = np.eye(3)
     origin = np.zeros(3)
     nolattice = np.ones(5)
     share = cur.probe.shape[0] // nw
@@ -414,13 +413,16 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                 # a wall has no lattice: its whole program
                 prog_w = (ops, blocks, 0, nolattice, nogrid, geo.wall_op[w, 0],
                           geo.wall_op[w, 1])
+                # the wall at its pose (identity for a wall that never moved)
+                xw = geo.wall_pos[w]
+                Rw = geo.wall_rot[w]
                 if shape_kind[sa] == 0:
-                    nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], origin, ident,
+                    nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xw, Rw,
                                            prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
                                            1.0, 0, margin, margin, lk, lr, grid, 0, nogrid,
                                            origin, st, hits, nh)
                 else:
-                    tree = (origin, ident, prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
+                    tree = (xw, Rw, prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
                             grid, 0, nogrid, origin)
                     nh, lpos = _direction(t, 0, ot, prev, cur, xa, Ra, sa, b, geo, origin, tree,
                                           1.0, 0, margin, delta, st, hits, nh, pose, lpos, lend)

@@ -19,7 +19,10 @@ from peclet.core.geom.transforms import quat_norm
 from peclet.core.validation import PecletArgumentError, check_int
 from peclet.dem.shapes import SceneShape
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Version 1 saves (before moving walls, per-pair materials and external loads) still load.
+_V2_KEYS = ("wall_motion", "material_ids", "wall_material_ids", "pair_materials",
+            "ext_force", "ext_torque")
 _WHAT = "a peclet Simulation save"
 #: A saved quaternion is unit to a few ulps; one farther than this was not written by save.
 _UNIT_TOL = 1e-12
@@ -48,6 +51,12 @@ def to_arrays(sim):
         "capacity_hint": np.int64(sim._capacity_hint),
         "n_shapes": np.int64(len(sim._shapes)), "n_walls": np.int64(len(sim._walls)),
     }
+    ids, wids, pairs = sim._materials.arrays(b.n)
+    d.update({"wall_motion": sim._wallmo.arrays(), "material_ids": ids,
+              "wall_material_ids": wids, "pair_materials": pairs,
+              "ext_force": sim._ext_force if sim._ext_force is not None else np.zeros((0, 3)),
+              "ext_torque": sim._ext_torque if sim._ext_torque is not None
+              else np.zeros((0, 3))})
     for i, s in enumerate(sim._shapes):
         scene = isinstance(s, SceneShape)
         d[f"shape{i}_kind"] = np.int64(1 if scene else 0)
@@ -116,6 +125,9 @@ def _required_keys(d):
     n_shapes = _scalar(d, "n_shapes", 0, len(d))
     n_walls = _scalar(d, "n_walls", 0, len(d))
     keys = set(_BASE_KEYS)
+    if "version" in d and d["version"].shape == () and d["version"].dtype.kind == "i" \
+            and int(d["version"]) >= 2:
+        keys.update(_V2_KEYS)
     for i in range(n_shapes):
         keys.update({f"shape{i}_kind", f"shape{i}_radius"})
         if f"shape{i}_kind" in d and d[f"shape{i}_kind"].shape == () \
@@ -127,6 +139,8 @@ def _required_keys(d):
 
 
 def _rebuild(cls, d):
+    if "version" in d:                  # a version we do not read is named before the keys
+        _scalar(d, "version", 1, FORMAT_VERSION)
     for k in ("n_shapes", "n_walls"):
         if k not in d:
             raise PecletArgumentError(k, "present", "missing")
@@ -136,8 +150,7 @@ def _rebuild(cls, d):
     if missing or extra:
         raise PecletArgumentError("keys", "exactly those of a save",
                                   {"missing": missing[:5], "unknown": extra[:5]})
-    if _scalar(d, "version", FORMAT_VERSION, FORMAT_VERSION) != FORMAT_VERSION:
-        raise PecletArgumentError("version", str(FORMAT_VERSION), int(d["version"]))
+    version = _scalar(d, "version", 1, FORMAT_VERSION)
     sim = cls(_scalar(d, "capacity_hint", 0, cls.MAX_CAPACITY))
     for i in range(n_shapes):
         kind = _scalar(d, f"shape{i}_kind", 0, 1)
@@ -172,6 +185,8 @@ def _rebuild(cls, d):
     sim.set_contact_margin_fraction(float(_arr(d, "margin_fraction", np.float64, ())))
     _load_bodies(sim, d)
     _load_warm_start(sim, d)
+    if version >= 2:
+        _load_v2(sim, d, n_walls)
     sim._step_count = _scalar(d, "step_count", 0, 2 ** 62)
     t = float(_arr(d, "time", np.float64, ()))
     if not np.isfinite(t):
@@ -211,6 +226,38 @@ def _load_bodies(sim, d):
     b.resize(n)
     b.pos, b.vel, b.omega, b.quat = (rows[k].copy() for k in ("pos", "vel", "omega", "quat"))
     b.inv_mass, b.inv_inertia, b.shape = rows["inv_mass"].copy(), ii.copy(), shape
+
+
+def _load_v2(sim, d, n_walls):
+    # moving walls, material ids and pairs, external loads: through the validating setters
+    rows = _arr(d, "wall_motion", np.float64, (n_walls, 16))
+    if not np.all(np.isfinite(rows)):
+        raise PecletArgumentError("wall_motion", "finite numbers", "non-finite entries")
+    for i in range(n_walls):
+        q = rows[i, 3:7]
+        if not abs(quat_norm(q) - 1.0) <= _UNIT_TOL:
+            raise PecletArgumentError("wall_motion", "unit wall quaternions", q.tolist(),
+                                      f"wall {i}")
+        sim.set_wall_velocity(i, rows[i, 7:10], rows[i, 10:13], rows[i, 13:16])
+    sim._wallmo.load(rows)                     # as saved, no renormalisation: bitwise resume
+    n = sim._bodies.n
+    sim.set_material_ids(_arr(d, "material_ids", np.int64, (n,)))
+    wids = _arr(d, "wall_material_ids", np.int64, (n_walls,))
+    for i, k in enumerate(wids.tolist()):
+        sim.set_wall_material_id(i, k)
+    for a, b, e_n, e_t, mu in _arr(d, "pair_materials", np.float64, (None, 5)).tolist():
+        if a != int(a) or b != int(b):
+            raise PecletArgumentError("pair_materials", "integer material ids", (a, b))
+        sim.set_pair_material(int(a), int(b), e_n, e_t, mu)
+    if not sim._materials.pairs and not np.any(sim._materials.body_ids):
+        sim._materials.body_ids = None          # the defaults, as a fresh simulation has
+    for key, setter in (("ext_force", sim.set_external_forces),
+                        ("ext_torque", sim.set_external_torques)):
+        a = _arr(d, key, np.float64, (None, 3))
+        if len(a) not in (0, n):
+            raise PecletArgumentError(key, f"0 or {n} rows", len(a))
+        if len(a):
+            setter(a)
 
 
 def _load_warm_start(sim, d):

@@ -4,7 +4,7 @@ The quaternion formulas themselves live in :mod:`peclet.core.geom.transforms` (o
 the rotor's test oracles (closed-form period, an ODE reference) in
 :mod:`peclet_verify.reference.rotor`.
 
-Conventions (DESIGN.md §5, algorithms.md "Rigid bodies"):
+Conventions (docs/architecture.md §6):
 
 - Quaternions are ``(x, y, z, w)``, unit, and act as an *active* rotation from the body's
   principal frame to the world frame: ``v_world = R(q) v_body``.

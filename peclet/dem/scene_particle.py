@@ -96,8 +96,9 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
     pad = 1e-3 * float(np.max(hi - lo))
     shell, stats = shell_probes(builder, home, int(target_shell_points), shell_resolution,
                                 hc.min(axis=0) - pad, hc.max(axis=0) + pad, seed=seed)
-    # Guaranteed radius: the home root's bounding ball contains the solid (DESIGN.md §3), so
-    # |c| + r bounds |p| over it. max |probe| is only a lower bound (kept for diagnostics).
+    # Guaranteed radius: the home root's bounding ball contains the solid (docs/architecture.md
+    # §4), so |c| + r bounds |p| over it. max |probe| is only a lower bound (kept for
+    # diagnostics).
     c, r, _ = builder.node_bound(home)
     radius = float(np.linalg.norm(c) + r)
     ni, nr, _, _ = builder.encode()

@@ -90,7 +90,11 @@ class Geometry(NamedTuple):
     (a member cluster's centre distance from the super-cluster's centre, rounded up);
     ``grid`` the shapes' distance grids concatenated, shape k's from ``shape_grid_off[k]``
     with ``shape_grid_dims`` (k, 3) (0 = none) and ``shape_grid_oh`` (k, 4) (origin, h);
-    ``wall_sign`` -1 for an inverted wall; ``max_hits``: a task's hit buffer size.
+    ``wall_sign`` -1 for an inverted wall; ``wall_pos`` (W, 3) / ``wall_rot`` (W, 3, 3) each
+    wall's pose (tree -> world: p = R p_tree + t), filled in place from
+    :class:`peclet.dem.wallmotion.WallMotion` before every detection (identity for a wall that
+    never moved), so that the geometry keeps its identity (the probe-list reuse is tied to it);
+    ``max_hits``: a task's hit buffer size.
     All home-frame lengths; the bounds are inflated by a relative 1e-12 (+ 1e-15) so that a
     round-off never makes a culled sphere miss a point it contains."""
     shape_kind: np.ndarray
@@ -120,6 +124,8 @@ class Geometry(NamedTuple):
     wall_lip: np.ndarray
     wall_e: np.ndarray
     wall_mu: np.ndarray
+    wall_pos: np.ndarray
+    wall_rot: np.ndarray
     ops: np.ndarray
     lk: np.ndarray
     lr: np.ndarray
@@ -164,11 +170,11 @@ def scene_shape(node_ints, node_reals, root, shell_points, bounding_radius):
     return SceneShape(br, shell.copy(), ni, nr, root, prog, lip, grid, dims, oh, pruned)
 
 
-def analytic_wall(node_ints, node_reals, root, invert, e, mu):
-    """A validated :class:`Wall` (``invert`` a bool, ``e`` in [0, 1], ``mu`` finite >= 0)."""
+def analytic_wall(node_ints, node_reals, root, invert, e_n, mu):
+    """A validated :class:`Wall` (``invert`` a bool, ``e_n`` in [0, 1], ``mu`` finite >= 0)."""
     b, ni, nr, root = _tree(node_ints, node_reals, root)
     invert = check_bool("invert", invert)
-    e = check_float("e", e, 0.0, 1.0)
+    e = check_float("e_n", e_n, 0.0, 1.0)
     mu = check_float("mu", mu, 0.0)
     return Wall(ni, nr, root, invert, e, mu, compile_root(ni, nr, root),
                 bool(b.is_lipschitz(root)))
@@ -320,6 +326,8 @@ def build_geometry(shapes, walls):
         wall_lip=np.array([w.lip for w in walls], np.bool_),
         wall_e=np.array([w.e for w in walls]),
         wall_mu=np.array([w.mu for w in walls]),
+        wall_pos=np.zeros((len(walls), 3)),
+        wall_rot=np.ascontiguousarray(np.tile(np.eye(3), (len(walls), 1, 1))),
         ops=ops, lk=lk, lr=lr, block_range=block_range,
         shape_pboff=pboff, shape_pob=pob, shape_pdims=pdims,
         max_hits=2 * maxm + 2)

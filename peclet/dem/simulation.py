@@ -5,13 +5,16 @@ Frames and conventions are those of :mod:`peclet.dem.bodies` (centres of mass, q
 (x, y, z, w) active home -> world, world-frame velocities, principal inverse moments) and of
 the geometry core (phi < 0 inside; a scene shape's tree and probes in the body's home frame).
 
-The step (DESIGN.md §5)::
+The step (docs/architecture.md §6)::
 
-    predict (gravity) -> periodic wrap / minimum images -> broad phase (cell list over bounding
-    spheres + margin) -> narrow phase (both ways, exact paths for spheres, walls) -> manifold
-    reduction -> velocity solve (PGS, Coulomb cone, restitution, warm start, speculative
-    contacts) -> integrate (x += v dt; torque-free rotation, rigid.advance_rotations) ->
-    position projection (translation AND rotation) -> guards -> commit, wrap.
+    predict (gravity, external forces and torques) -> periodic wrap / minimum images -> broad
+    phase (cell list over bounding spheres + margin, a moving wall's surface speed included)
+    -> narrow phase (both ways, exact paths for spheres, walls at their poses) -> manifold
+    reduction -> materials per contact (per pair of material ids, or the defaults) ->
+    velocity solve (PGS, Coulomb cone, restitution relative to a moving wall's surface, warm
+    start, speculative contacts) -> integrate (x += v dt; torque-free rotation,
+    rigid.advance_rotations) -> position projection (translation AND rotation) -> guards ->
+    commit, wrap, walls advance by their velocities (:mod:`peclet.dem.wallmotion`).
 
 Determinism: every parallel kernel writes only its own slots and every reduction is serial in a
 fixed order, so the state is bitwise identical at any thread count, and ``save``/``load``
@@ -25,13 +28,15 @@ import time
 import numpy as np
 
 from peclet.core.geom.transforms import quats_to_matrices
-from peclet.core.validation import PecletArgumentError, check_float, check_int
-from peclet.dem import narrowphase, persistence, solver
+from peclet.core.validation import PecletArgumentError, check_array, check_float, check_int
+from peclet.dem import broadphase, narrowphase, persistence, solver
 from peclet.dem.bodies import Bodies
 from peclet.dem.contacts import (Detector, WarmStart, lever_arms, listing, overlap_pairs,
                                  speculative_margin)
 from peclet.dem.domain import Domain
-from peclet.dem.materials import Material, clamp_to_cone, material, per_contact
+from peclet.dem.materials import (MAX_MATERIAL_ID, SIMULATION_DEFAULT, MaterialTable,
+                                  clamp_to_cone, material, per_contact)
+from peclet.dem.wallmotion import WallMotion
 from peclet.dem.guards import StepError, check_state, speed_bound  # noqa: F401 (API)
 from peclet.dem.rigid import advance_all
 from peclet.dem.shapes import analytic_wall, build_geometry, scene_shape, sphere_shape
@@ -46,6 +51,16 @@ SLOP_FRACTION = 5e-4
 #: Bounds on work a call can ask for: Gauss-Seidel sweeps per step, the capacity hints.
 MAX_SOLVER_ITERATIONS = 10_000
 MAX_CONTACT_CAPACITY = 10 ** 7
+
+
+def step_kernels_cached():
+    """Whether the step's main kernels (broad phase, narrow phase, velocity and position
+    solves) are in Numba's on-disk cache: False means the first step compiles them (about two
+    minutes on 2 cores), None that it cannot be told."""
+    from peclet.core.jitcache import all_cached
+
+    return all_cached([broadphase.find_pairs, narrowphase.narrow_phase,
+                       solver.solve_velocities, solver.project_positions])
 
 
 class Simulation:
@@ -77,7 +92,7 @@ class Simulation:
         self._shapes = []
         self._walls = []
         self._geo = None
-        self._material = Material()
+        self._material = SIMULATION_DEFAULT
         self._pos_iters, self._vel_iters = 10, 8
         self._gravity = np.zeros(3)
         self._domain = Domain()
@@ -88,6 +103,10 @@ class Simulation:
         self._warm = WarmStart()
         self._detector = Detector(max(1, cap) * narrowphase.MAX_PER_TASK)
         self._num_contacts = 0
+        self._wallmo = WallMotion()
+        self._materials = MaterialTable()
+        self._ext_force = None
+        self._ext_torque = None
         #: Accumulated wall-clock seconds per phase (broad, narrow, solver = velocity solve +
         #: integration + projection, total), for the benchmark.
         self.timings = {"broad": 0.0, "narrow": 0.0, "solver": 0.0, "total": 0.0}
@@ -159,13 +178,126 @@ class Simulation:
         return self._register(self._shapes, scene_shape(node_ints, node_reals, root,
                                                         shell_points, bounding_radius))
 
-    def add_analytic_wall(self, node_ints, node_reals, root, invert, e, mu):
-        """A static solid wall given by a CSG tree in the world frame (e.g. a box below the
-        floor). ``invert`` (a bool) True makes the complement the solid (a container). ``e``
-        in [0, 1] and ``mu`` >= 0 are the wall's restitution and friction. Returns the wall
-        index; in contact listings a wall appears as body ``-1 - index``."""
-        return self._register(self._walls, analytic_wall(node_ints, node_reals, root, invert,
-                                                         e, mu))
+    def add_analytic_wall(self, node_ints, node_reals, root, invert, e_n, mu):
+        """A solid wall given by a CSG tree in the world frame (e.g. a box below the floor),
+        static unless moved (:meth:`set_wall_transform`, :meth:`set_wall_velocity`).
+        ``invert`` (a bool) True makes the complement the solid (a container). ``e_n`` in
+        [0, 1] and ``mu`` >= 0 are the wall's restitution and friction (its tangential
+        restitution is the body material's ``e_t``), unless it is given a material id
+        (:meth:`set_wall_material_id`). Returns the wall index; in contact listings a wall
+        appears as body ``-1 - index``."""
+        w = self._register(self._walls, analytic_wall(node_ints, node_reals, root, invert,
+                                                      e_n, mu))
+        self._wallmo.add()
+        self._materials.wall_ids = np.append(self._materials.wall_ids, -1)
+        return w
+
+    # ------------------------------------------------------------------ moving walls
+    def set_wall_transform(self, wall, translation=(0.0, 0.0, 0.0),
+                           quaternion=(0.0, 0.0, 0.0, 1.0)):
+        """Pose of ``wall`` (an index from :meth:`add_analytic_wall`): the wall's tree, authored
+        in the world frame, is placed at ``p = R(quaternion) p_tree + translation``.
+        ``translation``: 3 finite numbers; ``quaternion`` (x, y, z, w): unit to within 1e-6.
+        Contacts at the next step see the wall there (see :mod:`peclet.dem.wallmotion`)."""
+        self._wallmo.set_transform(wall, translation, quaternion)
+
+    def set_wall_velocity(self, wall, linear=(0.0, 0.0, 0.0), angular=(0.0, 0.0, 0.0),
+                          center=(0.0, 0.0, 0.0)):
+        """Rigid velocity of ``wall``: ``linear`` (length/time) and ``angular`` (rad/time,
+        world frame) about the world point ``center``, each 3 finite numbers. The surface
+        velocity at p is ``linear + angular x (p - center)``: contacts take it as the wall's
+        velocity (friction drags, restitution is relative to the moving surface), and each step
+        advances the wall's pose by it (a later :meth:`set_wall_transform` overrides that)."""
+        self._wallmo.set_velocity(wall, linear, angular, center)
+
+    def get_wall_transform(self, wall):
+        """(translation (3,), quaternion (4,) x y z w) of ``wall``, copies."""
+        i = self._wallmo._index(wall)
+        return self._wallmo.pos[i].copy(), self._wallmo.quat[i].copy()
+
+    def get_wall_velocity(self, wall):
+        """(linear (3,), angular (3,), center (3,)) of ``wall``, copies."""
+        i = self._wallmo._index(wall)
+        m = self._wallmo
+        return m.vel[i].copy(), m.omega[i].copy(), m.center[i].copy()
+
+    # ------------------------------------------------------------------ materials per pair
+    def set_material_ids(self, ids):
+        """Material id per body (N,), integers in [0, 1023] (default 0 for every body). A
+        contact of bodies with ids (i, j) uses the pair declared by :meth:`set_pair_material`;
+        (0, 0) defaults to :meth:`set_material_params`. When N changes later, the first
+        min(N_old, N) bodies keep their ids and new ones get 0."""
+        n = self._bodies.n
+        raw = check_array("ids", ids, (n,))            # numbers, finite, one per body
+        if not np.all(raw == np.floor(raw)):
+            raise PecletArgumentError("ids", f"integers in [0, {MAX_MATERIAL_ID}]", ids,
+                                      "a non-integer entry")
+        ids = raw.astype(np.int64)
+        if n and (ids.min() < 0 or ids.max() > MAX_MATERIAL_ID):
+            raise PecletArgumentError("ids", f"integers in [0, {MAX_MATERIAL_ID}]",
+                                      (int(ids.min()), int(ids.max())))
+        self._materials.body_ids = ids.copy()
+
+    def get_material_ids(self):
+        """(N,) material id per body."""
+        self._sync_material_ids()
+        ids = self._materials.body_ids
+        return np.zeros(self._bodies.n, np.int64) if ids is None else ids.copy()
+
+    def set_pair_material(self, a, b, e_n, e_t, mu):
+        """Material of contacts between material ids ``a`` and ``b`` (either order; ids in
+        [0, 1023]): normal restitution ``e_n`` in [0, 1], tangential restitution ``e_t`` in
+        [-1, 1], friction ``mu`` >= 0. A wall with a material id (:meth:`set_wall_material_id`)
+        takes the pair (body id, wall id)."""
+        self._materials.set_pair(a, b, e_n, e_t, mu)
+
+    def set_wall_material_id(self, wall, material_id):
+        """Give ``wall`` the material id ``material_id`` in [0, 1023] (-1: back to the wall's own
+        restitution and friction from :meth:`add_analytic_wall`)."""
+        i = self._wallmo._index(wall)
+        self._materials.wall_ids[i] = check_int("material_id", material_id, -1,
+                                                MAX_MATERIAL_ID)
+
+    def _sync_material_ids(self):
+        ids, n = self._materials.body_ids, self._bodies.n
+        if ids is not None and len(ids) != n:
+            out = np.zeros(n, np.int64)
+            k = min(n, len(ids))
+            out[:k] = ids[:k]
+            self._materials.body_ids = out
+
+    # ------------------------------------------------------------------ external loads
+    def set_external_forces(self, forces):
+        """Force (N, 3) on each body's centre of mass (world frame, mass length / time^2),
+        applied at every step until changed or cleared; finite numbers."""
+        self._ext_force = check_array("forces", forces, (self._bodies.n, 3)).copy()
+
+    def set_external_torques(self, torques):
+        """Torque (N, 3) on each body (world frame), applied at every step until changed or
+        cleared; finite numbers."""
+        self._ext_torque = check_array("torques", torques, (self._bodies.n, 3)).copy()
+
+    def clear_external_forces(self):
+        self._ext_force = None
+
+    def clear_external_torques(self):
+        self._ext_torque = None
+
+    def get_external_forces(self):
+        """(N, 3) external forces (zeros when none are set)."""
+        f = self._ext_force
+        return np.zeros((self._bodies.n, 3)) if f is None else f.copy()
+
+    def get_external_torques(self):
+        """(N, 3) external torques (zeros when none are set)."""
+        t = self._ext_torque
+        return np.zeros((self._bodies.n, 3)) if t is None else t.copy()
+
+    def _check_loads(self):
+        for name, arr in (("forces", self._ext_force), ("torques", self._ext_torque)):
+            if arr is not None and len(arr) != self._bodies.n:
+                raise PecletArgumentError(f"external {name}", f"{self._bodies.n} rows (one per "
+                                          "body: set them again after changing N)", len(arr))
 
     def _register(self, table, item):
         table.append(item)
@@ -300,13 +432,26 @@ class Simulation:
             raise PecletArgumentError("shape ids", f"registered shapes in [0, "
                                       f"{len(self._shapes)})", int(b.shape.max()))
         self._domain.check_ready()
+        self._sync_material_ids()
+        self._check_loads()
+        if self._materials.active():
+            self._materials.check_declared(b.n, self._material)
 
-    def _margin(self, vel, omega, dt):
+    def _margin(self, vel, omega, dt, pos=None):
         base = self._margin_fraction * float(np.min([s.radius for s in self._shapes]))
-        return speculative_margin(base, self._radii(), vel, omega, dt)
+        m = speculative_margin(base, self._radii(), vel, omega, dt)
+        if self._wallmo.moving() and dt is not None:
+            # a moving wall's surface speed at any body enters like a body's
+            p = self._bodies.pos if pos is None else pos
+            m += 2.0 * self._wallmo.speed_bound(p, self._radii()) * dt
+        return m
 
     def _detect(self, pos, rot, margin):
-        return self._detector.detect(self._geometry(), self._bodies.shape, pos, rot, margin,
+        geo = self._geometry()
+        if self._wallmo.n:
+            geo.wall_pos[:] = self._wallmo.pos
+            geo.wall_rot[:] = self._wallmo.rotations()
+        return self._detector.detect(geo, self._bodies.shape, pos, rot, margin,
                                      self._margin_fraction, self._domain, self.timings)
 
     def _slop(self):
@@ -322,7 +467,7 @@ class Simulation:
             return None
         pos = self._domain.wrap(b.pos.copy())
         return self._detect(pos, quats_to_matrices(b.quat), self._margin(b.vel, b.omega,
-                                                                          self._dt))
+                                                                          self._dt, pos))
 
     def detect_contacts(self):
         """Contacts of the CURRENT state (nothing advances), sorted by (body_a, body_b,
@@ -372,16 +517,30 @@ class Simulation:
         w = b.omega.copy()
         with np.errstate(over="ignore", invalid="ignore"):   # the guard reports it
             v[inv_mass > 0] += self._gravity * dt
+            if self._ext_force is not None:
+                v += (inv_mass * dt)[:, None] * self._ext_force
+            if self._ext_torque is not None:
+                wi = solver.world_inv_inertias(q, inv_inertia)
+                w += dt * np.einsum("nij,nj->ni", wi, self._ext_torque)
         self._guard(x, q, v, w)                     # before any kernel sees a bad value
-        c = self._detect(x, quats_to_matrices(q), self._margin(v, w, dt))
+        c = self._detect(x, quats_to_matrices(q), self._margin(v, w, dt, x))
         t1 = time.perf_counter()
         keys = WarmStart.keys_of(c, len(self._walls))
         t1v, t2v = solver.tangent_basis(c.normal)
         lam = self._warm.lookup(keys, t1v, t2v)
-        e_c, beta_c, mu_c = per_contact(c.b, self._material, self._geometry())
+        if self._materials.active():
+            e_c, beta_c, mu_c = self._materials.per_contact(c.a, c.b, self._material,
+                                                            self._geometry())
+        else:
+            e_c, beta_c, mu_c = per_contact(c.b, self._material, self._geometry())
         clamp_to_cone(lam, mu_c)
         ra, rb = lever_arms(c, x)
-        con = solver.Constraints(c.a, c.b, c.normal, t1v, t2v, ra, rb, c.gap, e_c, beta_c, mu_c)
+        vw = np.zeros((len(c.a), 3))
+        if self._wallmo.moving():
+            isw = c.b < 0
+            vw[isw] = self._wallmo.surface_velocity(-1 - c.b[isw], c.point[isw])
+        con = solver.Constraints(c.a, c.b, c.normal, t1v, t2v, ra, rb, c.gap, e_c, beta_c, mu_c,
+                                 vw)
         invI = solver.world_inv_inertias(q, inv_inertia)
         rest = 2.0 * dt * float(np.sqrt((self._gravity ** 2).sum()))
         vn = solver.solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest, self._slop(),
@@ -397,11 +556,46 @@ class Simulation:
         # commit
         b.pos, b.quat, b.vel, b.omega = x, q, v, w
         self._warm.store(keys, lam, t1v, t2v)
+        self._wallmo.advance(dt)
         self._num_contacts = len(c.a)
         self._step_count += 1
         self._time += dt
         self.timings["solver"] += t2 - t1
         self.timings["total"] += t2 - t0
+
+    def relax(self, n=1):
+        """Remove overlaps without dynamics: ``n`` (an integer in [1, 10000]) passes of
+        detection at the current state followed by the position projection (the step's
+        non-penetration solve, moving AND turning bodies by the same effective masses) on the
+        current gaps. Velocities, time and the step count are untouched; a body with inverse
+        mass 0 does not move. Use it on a start state that overlaps (a dense random fill, a
+        size distribution grown in place) before stepping."""
+        n = check_int("n", n, 1, MAX_SOLVER_ITERATIONS)
+        self._check_ready()
+        b = self._bodies
+        if b.n == 0:
+            return
+        inv_inertia = self._resolved_inv_inertia()
+        for _ in range(n):
+            x = self._domain.wrap(b.pos.copy())
+            q = b.quat.copy()
+            self._guard(x, q, b.vel, b.omega)
+            c = self._detect(x, quats_to_matrices(q), self._margin(b.vel * 0.0, b.omega * 0.0,
+                                                                   None))
+            if not len(c.a) or not np.any(c.gap < 0.0):
+                break
+            t1v, t2v = solver.tangent_basis(c.normal)
+            ra, rb = lever_arms(c, x)
+            zero = np.zeros(len(c.a))
+            con = solver.Constraints(c.a, c.b, c.normal, t1v, t2v, ra, rb, c.gap, zero, zero,
+                                     zero, np.zeros((len(c.a), 3)))
+            invI = solver.world_inv_inertias(q, inv_inertia)
+            solver.project_positions(con, c.gap, b.inv_mass, invI, self._slop(),
+                                     max(self._pos_iters, 1), x, q)
+            self._domain.wrap(x)
+            self._guard(x, q, b.vel, b.omega)
+            b.pos, b.quat = x, q
+        self._warm.clear()
 
     def _guard(self, x, q, v, w):
         radii = self._radii()

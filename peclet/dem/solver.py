@@ -11,7 +11,7 @@ deep stacks in both directions):
 - normal: ``lambda_n >= 0`` and the relative normal velocity ``v_n >= vmin``, where
   ``vmin = -gap/dt`` for a speculative contact (gap > 0, it may close but not cross),
   ``0`` for a touching one, and ``-e v_n^-`` for a colliding one (approach faster than the
-  resting threshold and reached within this step) when e > 0;
+  resting threshold and reached within this step, to within the slop) when e > 0;
 - friction: the tangential relative velocity is driven to ``-beta v_t^-`` (Walton's
   tangential restitution) for a colliding contact and to 0 otherwise, inside the Coulomb cone
   ``|lambda_t| <= mu lambda_n`` (a disc in the tangent plane, not a pyramid).
@@ -37,7 +37,9 @@ class Constraints(NamedTuple):
     """The contacts of a step as the solvers see them: bodies ``a``, ``b`` (n,) (b < 0 a
     wall), unit ``normal``, tangents ``t1``, ``t2`` (n, 3), lever arms ``ra``, ``rb`` (n, 3)
     (zero for a wall), signed ``gap`` (n,), restitution ``e``, tangential restitution
-    ``beta`` and friction ``mu`` (n,)."""
+    ``beta`` and friction ``mu`` (n,), and ``vw`` (n, 3) the velocity of b's surface at the
+    contact point when b is a moving wall (zero otherwise: the relative velocity is then
+    exactly that of a static wall)."""
     a: np.ndarray
     b: np.ndarray
     normal: np.ndarray
@@ -49,6 +51,7 @@ class Constraints(NamedTuple):
     e: np.ndarray
     beta: np.ndarray
     mu: np.ndarray
+    vw: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -85,6 +88,15 @@ def _rel_vel(a, b, ra, rb, v, w, out):
         out[0] -= v[b, 0] + c0
         out[1] -= v[b, 1] + c1
         out[2] -= v[b, 2] + c2
+
+
+@njit(cache=True, inline="always")
+def _minus_wall(vr, vw, i):
+    """The relative velocity against a moving wall's surface: vr -= vw[i] (exactly vr for a
+    static wall, vw = 0)."""
+    vr[0] -= vw[i, 0]
+    vr[1] -= vw[i, 1]
+    vr[2] -= vw[i, 2]
 
 
 @njit(cache=True, inline="always")
@@ -131,7 +143,7 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
     which enter as the warm start. ``inv_mass`` (N,), ``invI`` (N, 3, 3) world inverse inertia.
     Returns the normal relative velocity of every contact after the solve (n,)."""
     ca, cb, normal, t1, t2, ra, rb = con.a, con.b, con.normal, con.t1, con.t2, con.ra, con.rb
-    gap, e_n, beta, mu = con.gap, con.e, con.beta, con.mu
+    gap, e_n, beta, mu, vw = con.gap, con.e, con.beta, con.mu, con.vw
     n = ca.shape[0]
     kn = np.empty(n)
     kt1 = np.empty(n)
@@ -148,9 +160,13 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
         kt1[i] = _eff_mass(a, b, ra[i], rb[i], t1[i], inv_mass, invI)
         kt2[i] = _eff_mass(a, b, ra[i], rb[i], t2[i], inv_mass, invI)
         _rel_vel(a, b, ra[i], rb[i], v, w, vr)
+        _minus_wall(vr, vw, i)
         vn = vr[0] * normal[i, 0] + vr[1] * normal[i, 1] + vr[2] * normal[i, 2]
         base = -(gap[i] - slop) / dt if gap[i] > slop else 0.0
-        colliding = vn < -rest_threshold and gap[i] + vn * dt < 0.0
+        # reached within this step, to within the slop: a contact that would end the step
+        # in [0, slop) is an impact too, or the speculative bound would slow it to end at
+        # the slop (by up to slop/dt) and restitution would act on the reduced speed
+        colliding = vn < -rest_threshold and gap[i] + vn * dt < slop
         vmin[i] = base
         tt1[i] = 0.0
         tt2[i] = 0.0
@@ -173,6 +189,7 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
             if kn[i] <= 0.0:
                 continue
             _rel_vel(a, b, ra[i], rb[i], v, w, vr)
+            _minus_wall(vr, vw, i)
             vn = vr[0] * normal[i, 0] + vr[1] * normal[i, 1] + vr[2] * normal[i, 2]
             old = lam[i, 0]
             new = old + (vmin[i] - vn) / kn[i]
@@ -186,6 +203,7 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
                 _apply(a, b, ra[i], rb[i], P, v, w, inv_mass, invI)
             # friction: both tangents, then the cone
             _rel_vel(a, b, ra[i], rb[i], v, w, vr)
+            _minus_wall(vr, vw, i)
             u1 = vr[0] * t1[i, 0] + vr[1] * t1[i, 1] + vr[2] * t1[i, 2]
             u2 = vr[0] * t2[i, 0] + vr[1] * t2[i, 1] + vr[2] * t2[i, 2]
             o1 = lam[i, 1]
@@ -209,6 +227,7 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
     vn_out = np.empty(n)
     for i in range(n):
         _rel_vel(ca[i], cb[i], ra[i], rb[i], v, w, vr)
+        _minus_wall(vr, vw, i)
         vn_out[i] = vr[0] * normal[i, 0] + vr[1] * normal[i, 1] + vr[2] * normal[i, 2]
     return vn_out
 

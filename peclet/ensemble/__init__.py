@@ -8,7 +8,7 @@
 
 Each realization is a deterministic function of its :class:`PackSpec`; results land in
 ``OUT/<spec-id>/`` (results.json + pack.npz) as they finish and a rerun skips them
-(DESIGN.md §9).
+(docs/architecture.md §11).
 """
 from .ledger import Ledger
 from .realize import FIGURES, realize

@@ -4,8 +4,9 @@ measures it. This is the function a Dask worker runs; it is also the serial refe
 Figures of merit, as the page computes them (peclet.packing.pipeline): the porosity eps and the
 envelope packing fraction f_env by Monte Carlo over the first bulk window
 (``analysis.bulk_windows``; ``spec.mc_samples`` points, sample seed 0), and the mean
-coordination Z (``analysis.contacts`` at the page pipeline's contact gap). Everything but the
-timings is a deterministic function of the spec, at any thread count.
+coordination Z (element-element, from the engine's own contact detection at the page
+pipeline's contact gap, :mod:`peclet.packing.coordination`; ``z_total`` adds the walls).
+Everything but the timings is a deterministic function of the spec, at any thread count.
 """
 from __future__ import annotations
 
@@ -46,7 +47,7 @@ def realize(spec, threads=None):
     and pack the
     frozen :class:`peclet.packing.freeze.Pack`.
     """
-    from peclet.packing import analysis, pack
+    from peclet.packing import analysis, coordination, pack
     from peclet.packing.pipeline import CONTACT_GAP, set_threads
 
     if threads is not None:
@@ -62,12 +63,15 @@ def realize(spec, threads=None):
     geo = analysis.PackGeometry(p)
     windows, wscale = analysis.bulk_windows(p)
     fr = analysis.cover_fractions(geo, windows[0], spec.mc_samples, seed=0)
-    con = analysis.contacts(geo, gap=CONTACT_GAP)
+    walls = res.container.solid_walls(float(p.positions[:, 1].max()) + 4 * res.container.d)
+    con = coordination.engine_coordination(p, walls, gap=CONTACT_GAP * res.container.d,
+                                           periodic=res.container.kind == "box")
     t2 = time.perf_counter()
     out = dict(spec=spec.as_dict(), id=spec.id,
                state_hash=res.state_hash(),
                eps=fr["eps"], eps_se=fr["eps_se"], f_env=fr["f_env"],
-               f_env_se=fr["f_env_se"], z_mean=con["z_mean"], rattlers=con["rattlers"],
+               f_env_se=fr["f_env_se"], z_mean=con["z_elem"], z_total=con["z_total"],
+               rattlers=con["rattlers"], contact_method=con["method"], landed=res.landed,
                contact_gap=CONTACT_GAP, window=fr["window"], window_scale=wscale,
                steps=int(getattr(res, "steps", 0)),
                timing=dict(pack=t1 - t0, analysis=t2 - t1),

@@ -25,7 +25,7 @@ from peclet.core.validation import PecletArgumentError, check_bool, check_int, c
 
 from .ledger import Ledger
 from .realize import FIGURES, realize
-from .spec import PackSpec, ensemble_manifest
+from .spec import PackSpec, element_params, ensemble_manifest
 
 __all__ = ["run", "connect", "open_ledger", "machine_cores", "EnsembleError"]
 
@@ -78,9 +78,14 @@ def connect(scheduler=None, n_workers=None, threads_per_worker=None, name="sched
     (default cores // threads_per_worker), each running one task at a time with
     ``threads_per_worker`` Numba threads (default 1), closed on exit. A string: the address of
     a running scheduler, reached within ``connect_timeout`` seconds or PecletArgumentError
-    naming ``name``. A ``distributed.Client``: used as is (not closed). A cluster object (has
-    ``scheduler_address``): a client on it. On an existing cluster each task uses
-    ``threads_per_worker`` Numba threads (default 1: size the workers one per core).
+    naming ``name`` (or DASK_SCHEDULER_ADDRESS when the address came from it). The bound holds
+    end to end: a Dask handshake (``distributed.comm.connect``) is tried first under that
+    deadline, so an address that accepts and says nothing, or says something that is not
+    Dask, fails within ``connect_timeout`` (plus a second) instead of blocking; then the
+    Client is made under the same deadline. A ``distributed.Client``: used as is (not
+    closed). A cluster object (has ``scheduler_address``): a client on it. On an existing
+    cluster each task uses ``threads_per_worker`` Numba threads (default 1: size the workers
+    one per core).
     """
     from distributed import Client
 
@@ -91,8 +96,9 @@ def connect(scheduler=None, n_workers=None, threads_per_worker=None, name="sched
     if n_workers is not None:
         n_workers = check_int("n_workers", n_workers, 1, 4096)
     connect_timeout = check_float("connect_timeout", connect_timeout, 0.0, 600.0, lo_open=True)
-    if scheduler is None:
-        scheduler = os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if scheduler is None and os.environ.get("DASK_SCHEDULER_ADDRESS"):
+        scheduler = os.environ["DASK_SCHEDULER_ADDRESS"]
+        name = "DASK_SCHEDULER_ADDRESS (environment variable)"
     threads = threads_per_worker or 1
     if scheduler is None:
         from distributed import LocalCluster
@@ -120,16 +126,91 @@ def connect(scheduler=None, n_workers=None, threads_per_worker=None, name="sched
     what = "the address of a running Dask scheduler, e.g. tcp://HOST:8786"
     if not isinstance(scheduler, str) or "://" not in scheduler:
         raise PecletArgumentError(name, what, scheduler)
-    try:
-        client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise PecletArgumentError(name, what, scheduler,
-                                  f"unreachable within {connect_timeout:g} s: {detail}") from None
+    client = _bounded_client(scheduler, connect_timeout, name, what)
     try:
         yield client, threads
     finally:
         client.close()
+
+
+def _within(fn, seconds):
+    """``fn()`` in a daemon thread: (True, result) or (False, the exception), or None if it
+    has not returned after ``seconds`` (the thread is then left to finish on its own)."""
+    import threading
+
+    box = []
+
+    def target():
+        try:
+            box.append((True, fn()))
+        except BaseException as exc:  # noqa: BLE001 - reported to the caller
+            box.append((False, exc))
+
+    t = threading.Thread(target=target, name="peclet-dask-connect", daemon=True)
+    t.start()
+    t.join(seconds)
+    return box[0] if box else None
+
+
+def _handshake(address, timeout):
+    """A Dask comm handshake with ``address`` under a hard deadline (its own event loop)."""
+    import asyncio
+
+    from distributed.comm import connect as comm_connect
+
+    async def go():
+        comm = await comm_connect(address, timeout=timeout)
+        await comm.close()
+
+    asyncio.run(asyncio.wait_for(go(), timeout))
+
+
+def _bounded_client(address, timeout, name, what):
+    """A ``distributed.Client`` on ``address``, or PecletArgumentError naming ``name`` within
+    ``timeout`` seconds (+ 1 s) per stage: the handshake, then the client."""
+    from distributed import Client
+
+    def fail(detail):
+        return PecletArgumentError(name, what, address,
+                                   f"no Dask scheduler answered within {timeout:g} s: {detail}")
+
+    got = _within(lambda: _handshake(address, timeout), timeout + 1.0)
+    if got is None:
+        raise fail("the connection stayed silent")
+    if not got[0]:
+        exc = got[1]
+        if isinstance(exc, KeyboardInterrupt):
+            raise exc
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        if isinstance(exc, _timeout_types()):
+            text = "the connection stayed silent"
+        elif not isinstance(exc, (OSError, ValueError)):
+            text = f"not a Dask scheduler ({type(exc).__name__}: {text[:120]})"
+        raise fail(text or type(exc).__name__)
+    abandoned = []
+
+    def make():
+        c = Client(address, timeout=timeout, set_as_default=False)
+        if abandoned:          # the caller gave up: do not leave a client open
+            c.close()
+        return c
+
+    got = _within(make, timeout + 1.0)
+    if got is None:
+        abandoned.append(True)
+        raise fail("the scheduler did not complete the client's registration")
+    if not got[0]:
+        exc = got[1]
+        if isinstance(exc, KeyboardInterrupt):
+            raise exc
+        raise fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+    return got[1]
+
+
+def _timeout_types():
+    import asyncio
+
+    return (asyncio.TimeoutError, TimeoutError)
 
 
 def dashboard_link(client):
@@ -145,6 +226,9 @@ def dashboard_link(client):
 def _row(res, reused):
     """A flat table row: the spec's fields, the id, the figures of merit and their errors."""
     row = dict(res["spec"])
+    # the element's given parameters (a swept thickness) as columns of their own
+    for k, v in element_params(row["element"]).items():
+        row.setdefault(k, v)
     row.update(id=res["id"], state_hash=res["state_hash"], reused=bool(reused))
     for f in FIGURES:
         row[f] = res[f]

@@ -6,8 +6,14 @@ the hex the start of the SHA-256 of the spec's canonical JSON, so the same spec 
 the same ``OUT/<spec-id>/`` directory and two different specs never share one.
 
 ``--seeds`` text: comma-separated integers >= 0 and inclusive ranges, e.g. ``1-32`` or
-``1-4,10,20-22``. ``--sweep`` text: ``KEY=V1,V2,...`` with KEY one of :data:`SWEEPABLE`; several
-sweeps combine as a Cartesian product.
+``1-4,10,20-22``. ``--sweep`` text: ``KEY=V1,V2,...`` with KEY one of :data:`SWEEPABLE` or a
+numeric construction parameter of the spec's element (``thickness=0.03,0.06,0.12`` for a Pall
+ring: ``peclet.packing.elements.PARAMS``); several sweeps combine as a Cartesian product.
+
+The element is text, ``NAME`` or ``NAME:KEY=V,...`` (``pall_ring:thickness=0.024``), stored in
+its canonical form (parameters in ``PARAMS`` order, floats as their shortest repr): the same
+element always gives the same id, and two thicknesses two ids. A spec without parameters keeps
+the id it had before parameters existed.
 """
 from __future__ import annotations
 
@@ -21,7 +27,8 @@ import re
 from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
 
 __all__ = ["PackSpec", "SWEEPABLE", "PROTOCOLS", "check_field", "parse_seeds", "parse_sweep",
-           "make_specs", "ensemble_manifest", "MAX_REALIZATIONS"]
+           "make_specs", "ensemble_manifest", "MAX_REALIZATIONS", "element_params",
+           "sweepable_element_params"]
 
 #: Version of the spec / results layout; part of every id, so a layout change never reuses
 #: an old directory.
@@ -49,14 +56,25 @@ def check_field(name, value, arg=None):
         return check_float(arg, value, 0.0, 1.0)
     if name == "e_t":
         return check_float(arg, value, -1.0, 1.0)
-    if name == "count":
-        return check_int(arg, value, 1, 1_000_000)
+    if name == "count":   # pack()'s cap (work and memory: peclet.packing.api.count_cap)
+        from peclet.packing.api import count_cap
+
+        cap, why = count_cap()
+        v = check_int(arg, value, 1)
+        if v > cap:
+            raise PecletArgumentError(arg, f"an integer in [1, {cap}]", value, why)
+        return v
     if name == "steps_scale":
         return check_float(arg, value, 0.0, 100.0, lo_open=True)
     if name == "seed":
         return check_int(arg, value, 0, _MAX_SEED)
-    if name == "mc_samples":
-        return check_int(arg, value, 1000, 100_000_000)
+    if name == "mc_samples":   # about 100 bytes per sample at the sampling's peak: 1 GB
+        v = check_int(arg, value, 1000)
+        if v > 10_000_000:
+            raise PecletArgumentError(arg, "an integer in [1000, 10000000]", value,
+                                      "about 100 bytes per sample at the sampling's peak: "
+                                      "10^7 samples are about 1 GB")
+        return v
     raise KeyError(name)
 
 
@@ -67,7 +85,9 @@ class PackSpec:
     the same), start cloud from ``seed``; then measure eps, f_env (``mc_samples`` Monte Carlo
     points in the first bulk window) and the mean coordination Z.
 
-    element: a library name (``peclet.packing.ELEMENTS``); container: ``"box:L"`` etc. as
+    element: a library name (``peclet.packing.ELEMENTS``), optionally with construction
+    parameters ``NAME:KEY=V,...`` (checked and stored canonically, see the module docstring;
+    :attr:`element_params` reads them back); container: ``"box:L"`` etc. as
     ``peclet.packing.pack`` reads it; lengths in element diameters D.
     """
 
@@ -91,14 +111,20 @@ class PackSpec:
             object.__setattr__(self, name, check_field(name, getattr(self, name)))
         # the same cheap checks pack() makes, here so a bad spec fails before a cluster starts
         from peclet.packing.containers import parse_container
-        from peclet.packing.elements import ELEMENTS
+        from peclet.packing.elements import element_text, parse_element
 
-        check_choice("element", self.element, sorted(ELEMENTS))
+        object.__setattr__(self, "element", element_text(*parse_element(self.element,
+                                                                        "element")))
         parse_container(self.container)
         check_choice("protocol", self.protocol, PROTOCOLS)
         if self.steps_scale != 1.0 and self.protocol != "page":
             raise PecletArgumentError("steps_scale", "1 unless protocol is 'page'",
                                       self.steps_scale)
+
+    @property
+    def element_params(self):
+        """The element's given construction parameters (name -> value; {} for the defaults)."""
+        return element_params(self.element)
 
     def as_dict(self):
         """The spec as a JSON-able dict (field name -> value)."""
@@ -160,17 +186,59 @@ def parse_seeds(text, name="seeds"):
     return sorted(seen)
 
 
-def parse_sweep(items, name="sweep"):
+def element_params(element):
+    """The given construction parameters of an element text (``"pall_ring:thickness=0.024"``
+    -> ``{"thickness": 0.024}``; ``"pall_ring"`` -> ``{}``), checked."""
+    from peclet.packing.elements import parse_element
+
+    return parse_element(element, "element")[1]
+
+
+def sweepable_element_params(element="pall_ring"):
+    """Names of the element's numeric construction parameters (a sweep may vary them)."""
+    from peclet.packing.elements import PARAMS, parse_element
+
+    kind = parse_element(element, "element")[0]
+    return tuple(p.name for p in PARAMS[kind] if p.kind != "triple")
+
+
+def _check_element_value(element, key, num, arg):
+    """``num`` as the element's parameter ``key`` (its range given the element's other
+    parameters, then the constructor's cross-checks); returns the value (float or int)."""
+    from peclet.packing.elements import ELEMENTS, check_param, parse_element
+
+    kind, given = parse_element(element, "element")
+    if key in given:
+        raise PecletArgumentError(arg, f"a parameter not also fixed in the element {element!r}",
+                                  key)
+    v = check_param(kind, key, num, given, arg)
+    try:
+        ELEMENTS[kind](**dict(given, **{key: v}))
+    except ValueError as exc:
+        raise PecletArgumentError(arg, f"{kind} parameters consistent with each other", num,
+                                  str(exc)) from None
+    return v
+
+
+def parse_sweep(items, name="sweep", element=None):
     """``["mu=0.3,0.5,0.8", "count=24,48"]`` (or one string) -> ``{"mu": [...], ...}`` in the
     given order; each value checked like a fixed value of that parameter.
 
-    Raises PecletArgumentError naming ``name`` on a missing ``=``, a key not in
-    :data:`SWEEPABLE`, a key swept twice, an empty or unparsable value, a value out of range,
-    or a value given twice.
+    KEY is one of :data:`SWEEPABLE` or a numeric construction parameter of ``element`` (the
+    ensemble's element text; None: ``"pall_ring"``, PackSpec's default), e.g.
+    ``thickness=0.03,0.06,0.12``, each value checked against the parameter's range given the
+    element's other parameters (``peclet.packing.elements.PARAMS``).
+
+    Raises PecletArgumentError naming ``name`` on a missing ``=``, a key that is neither, a
+    key swept twice, an empty or unparsable value, a value out of range, or a value given
+    twice.
     """
-    what = f"KEY=V1,V2,... with KEY one of {', '.join(SWEEPABLE)}"
+    element = "pall_ring" if element is None else element
     if items is None:
         return {}
+    elem_keys = sweepable_element_params(element)
+    what = (f"KEY=V1,V2,... with KEY one of {', '.join(SWEEPABLE)} or a parameter of "
+            f"{element.partition(':')[0]} ({', '.join(elem_keys)})")
     if isinstance(items, str):
         items = [items]
     out = {}
@@ -179,8 +247,9 @@ def parse_sweep(items, name="sweep"):
             raise PecletArgumentError(name, what, item)
         key, _, vals = item.partition("=")
         key = key.strip()
-        if key not in SWEEPABLE:
-            raise PecletArgumentError(name, what, item, f"unknown parameter {key!r}")
+        if key not in SWEEPABLE and key not in elem_keys:
+            raise PecletArgumentError(name, what, item, f"unknown parameter {key!r}"
+                                      + _other_elements(key, element))
         if key in out:
             raise PecletArgumentError(name, what, item, f"{key} swept twice")
         parsed = []
@@ -193,7 +262,8 @@ def parse_sweep(items, name="sweep"):
             if key == "count" and not (math.isfinite(num) and num.is_integer()):
                 raise PecletArgumentError(name, what, item, f"count {v!r} is not an integer")
             try:
-                parsed.append(check_field(key, num, f"{name} {key}"))
+                parsed.append(check_field(key, num, f"{name} {key}") if key in SWEEPABLE
+                              else _check_element_value(element, key, num, f"{name} {key}"))
             except PecletArgumentError as exc:
                 raise PecletArgumentError(name, what, item, str(exc)) from None
         if len(set(parsed)) != len(parsed):
@@ -202,21 +272,56 @@ def parse_sweep(items, name="sweep"):
     return out
 
 
+def _other_elements(key, element):
+    from peclet.packing.elements import PARAMS
+
+    kind = element.partition(":")[0]
+    if any(p.name == key and p.kind == "triple" for p in PARAMS.get(kind, ())):
+        return f"; {key!r} is a triple (a/b/c): set it in the element, it is not sweepable"
+    owners = [k for k, ps in PARAMS.items() if any(p.name == key for p in ps)]
+    return (f"; {key!r} is a parameter of {', '.join(owners)}, not of {kind}") \
+        if owners else ""
+
+
 def make_specs(seeds, sweep=None, **fixed):
     """Every (sweep point, seed) as a :class:`PackSpec`, sweep points in the given order and
-    seeds inner. ``fixed``: the other PackSpec fields; a swept key must not also be fixed."""
+    seeds inner. ``fixed``: the other PackSpec fields; a swept key must not also be fixed.
+    A swept element parameter (e.g. ``thickness``) goes into the element text of each point,
+    beside the parameters the fixed ``element`` already gives (which must not include it)."""
+    from peclet.packing.elements import element_text, parse_element
+
     sweep = dict(sweep or {})
     clash = sorted(set(sweep) & {k for k, v in fixed.items() if v is not None})
     if clash:
         raise PecletArgumentError("sweep", "parameters not also given as fixed values",
                                   clash)
     fixed = {k: v for k, v in fixed.items() if v is not None}
+    names = {f.name for f in dataclasses.fields(PackSpec)}
+    elem_keys = [k for k in sweep if k not in names]
+    kind, given = parse_element(fixed.get("element", PackSpec.element), "element")
+    for k in elem_keys:   # what parse_sweep checks, again for a sweep built by hand
+        if k not in sweepable_element_params(kind):
+            raise PecletArgumentError("sweep", f"a spec field ({', '.join(SWEEPABLE)}) or a "
+                                      f"parameter of {kind} "
+                                      f"({', '.join(sweepable_element_params(kind))})", k,
+                                      "unknown parameter" + _other_elements(k, kind))
+        if k in given:
+            raise PecletArgumentError("sweep", "parameters not also fixed in the element",
+                                      k)
     keys = list(sweep)
     points = list(itertools.product(*(sweep[k] for k in keys))) if keys else [()]
     if len(points) * len(seeds) > MAX_REALIZATIONS:
         raise PecletArgumentError("sweep", f"at most {MAX_REALIZATIONS} realizations in all",
                                   len(points) * len(seeds), "seeds x sweep points")
-    return [PackSpec(**fixed, **dict(zip(keys, p)), seed=s) for p in points for s in seeds]
+    specs = []
+    for p in points:
+        point = dict(zip(keys, p))
+        kw = dict(fixed, **{k: v for k, v in point.items() if k in names})
+        if elem_keys:
+            kw["element"] = element_text(kind, dict(given, **{k: point[k]
+                                                             for k in elem_keys}))
+        specs.extend(PackSpec(**kw, seed=s) for s in seeds)
+    return specs
 
 
 def ensemble_manifest(specs, swept=None):

@@ -12,8 +12,10 @@ are bitwise the same at any thread count:
   and whether it lies in some element's envelope (phi_env <= 0). Porosity, envelope packing
   fraction and doubly-covered volume are fractions of these, with binomial standard errors.
 - :func:`_probe_min_kernel`: for each (probing body, target body) pair, the minimum of the
-  target's phi over the prober's shell probes. Contact (coordination) is min < 0 in EITHER
-  direction; the deepest probe gives the overlap depth.
+  target's phi over the prober's shell probes: the deepest probe gives the overlap depth
+  (:func:`probe_overlap`). It is NOT a contact count: two convex curved surfaces touch at a
+  point no probe sits on, so coordination comes from the engine's own contact detection
+  (:func:`peclet.packing.coordination.engine_coordination`).
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ from peclet.core.geom.program import concatenate
 
 from .freeze import Pack
 
-__all__ = ["PackGeometry", "bulk_windows", "cover_fractions", "contacts", "orientation",
+__all__ = ["PackGeometry", "bulk_windows", "cover_fractions", "probe_overlap", "orientation",
            "floor_and_box", "certificate_check", "wall_sweep", "fraction_se"]
 
 
@@ -156,11 +158,29 @@ class PackGeometry:
 def bulk_windows(pack: Pack, floor_cut=(1.0, 0.8, 1.2), top_cut=(0.8, 0.6, 1.0)):
     """The page's three bulk windows ``(floor_cut[k], y_top - top_cut[k])``, y_top the highest
     centre. A bed too shallow for them (reduced runs) gets the cuts scaled down by the same
-    factor so every window keeps at least half the bed height; returns (windows, scale)."""
-    ytop = float(pack.positions[:, 1].max())
+    factor so every window keeps at least half the bed height; returns (windows, scale).
+
+    A degenerate window is refused (PecletArgumentError naming "pack"): a bed whose highest
+    centre is not above the floor (y = 0), or a window that no element's bounding sphere
+    reaches (its voidage would be 1 +- 0: a film or a gap, not a bed)."""
+    from peclet.core.validation import PecletArgumentError
+
+    ys = pack.positions[:, 1]
+    ytop = float(ys.max())
+    if not ytop > 0.0:
+        raise PecletArgumentError("pack", "a bed above the floor y = 0", f"{pack.n} elements",
+                                  f"highest centre at y = {ytop:.4g}")
     need = max(f + t for f, t in zip(floor_cut, top_cut))
     scale = 1.0 if ytop - need >= 0.5 * ytop else 0.5 * ytop / need
-    return [(f * scale, ytop - t * scale) for f, t in zip(floor_cut, top_cut)], scale
+    windows = [(f * scale, ytop - t * scale) for f, t in zip(floor_cut, top_cut)]
+    rb = float(pack.bounding_radius)
+    for a, b in windows:
+        if not (b > a and np.any((ys - rb < b) & (ys + rb > a))):
+            raise PecletArgumentError(
+                "pack", f"a bed that reaches its bulk window y in [{a:.4g}, {b:.4g}) (else "
+                "eps would be 1 +- 0: a film or a gap, not a bed)", f"{pack.n} elements",
+                f"centres from y = {ys.min():.4g} to {ytop:.4g}, bounding radius {rb:.4g}")
+    return windows, scale
 
 
 def cover_fractions(geo: PackGeometry, window, n_samples=400_000, seed=0):
@@ -188,17 +208,17 @@ def cover_fractions(geo: PackGeometry, window, n_samples=400_000, seed=0):
                 double=dbl, double_se=fraction_se(dbl, n), n_samples=n)
 
 
-def contacts(geo: PackGeometry, gap=0.0):
-    """Coordination from the probe-inside test run BOTH ways, and the probe overlap depth.
+def probe_overlap(geo: PackGeometry, gap=0.0):
+    """The probe overlap depth: the probe-inside test run BOTH ways over every candidate pair.
 
-    A pair (i, image j), j's owner != i, with centres closer than two bounding radii touches if a
-    probe of either comes closer than ``gap`` (a length >= 0) to the other's tree: ``gap = 0``
-    is the page's strictly-inside test, which suits an engine that lets bodies overlap; an
-    engine that removes overlap leaves touching bodies at gaps of the order of its resting slop
-    plus the sag of the probe sampling, and needs ``gap`` of that order. Returns a dict:
-    counts (N,) contacts per body (the page's count over images), z_mean, rattlers (bodies with none), pairs (ordered
-    candidate pairs), max_depth (deepest probe of any body inside another, a length) and
-    depths (per touching pair).
+    A pair (i, image j), j's owner != i, with centres closer than two bounding radii is
+    "probe-touching" if a probe of either comes closer than ``gap`` (a length >= 0) to the
+    other's tree (``gap = 0``: the page's strictly-inside test). Its purpose is the overlap
+    depth; its per-body counts (``probe_counts``, ``probe_z_mean``) are NOT a coordination
+    number: they miss every point contact between curved surfaces (a sphere bed reads
+    Z ~ 1.2 instead of 4.6), see :mod:`peclet.packing.coordination`. Returns a dict:
+    probe_counts (N,), probe_z_mean, pairs (ordered candidate pairs), max_depth (deepest probe
+    of any body inside another, a length) and depths (per probe-touching pair).
     """
     from scipy.spatial import cKDTree
 
@@ -220,9 +240,8 @@ def contacts(geo: PackGeometry, gap=0.0):
     touch = (m_ab < gap) | (m_ba < gap)
     cnt = np.bincount(ai[touch], minlength=pack.n) if len(ai) else np.zeros(pack.n, int)
     depth = np.maximum(-np.minimum(m_ab, m_ba), 0.0)
-    return dict(counts=cnt, z_mean=float(cnt.mean()), rattlers=int((cnt < 1).sum()),
-                pairs=int(len(ai)), max_depth=float(depth.max(initial=0.0)),
-                depths=depth[touch])
+    return dict(probe_counts=cnt, probe_z_mean=float(cnt.mean()), pairs=int(len(ai)),
+                max_depth=float(depth.max(initial=0.0)), depths=depth[touch])
 
 
 def _probe_min_reverse(geo, ai, bj):

@@ -1,6 +1,6 @@
 """``peclet.packing.pack``: any element, any container, a protocol, a material -> a frozen pack.
 
-World frame (DESIGN.md §8): y up, gravity -9.81 D / time^2 along y, the floor's top face at
+World frame (docs/architecture.md §10): y up, gravity -9.81 D / time^2 along y, the floor's top face at
 y = 0; lengths of container specs and protocols in element diameters D (the element's envelope
 outer diameter: 1 for the library's defaults). Quaternions (x, y, z, w), active, home
 (principal) frame -> world.
@@ -30,14 +30,45 @@ from peclet.core.validation import PecletArgumentError, check_bool, check_int
 
 from . import checkpoint as ckpt
 from .containers import Container, parse_container
-from .elements import ELEMENTS, Element
+from .elements import ELEMENTS, Element, parse_element
 from .freeze import Pack
 from .material import Material, as_material
 from .pipeline_checks import set_threads
 from .progress import Progress
 from .protocols import G, Body, RunState, drive, insert_bodies, new_simulation, parse_protocol
 
-__all__ = ["pack", "resume", "PackResult", "ElementModel", "element_model", "ITERATIONS"]
+__all__ = ["pack", "resume", "PackResult", "ElementModel", "element_model", "ITERATIONS",
+           "COUNT_MAX", "BYTES_PER_ELEMENT", "count_cap"]
+
+#: The most elements one pack takes (the work: at ~0.1 ms per element-step on 2 cores, 10^5
+#: elements are ~10 s per step), unless memory caps it lower (:func:`count_cap`).
+COUNT_MAX = 100_000
+
+#: Bytes the engine holds per element, an upper estimate: the narrow phase's contact slots
+#: (16 per body pair, 64 bytes each, ~8 pairs per element, doubled when the buffer grows)
+#: plus the body state and broad-phase lists.
+BYTES_PER_ELEMENT = 16 * 1024
+
+
+def _physical_memory():
+    """Bytes of physical memory (None where the OS does not say)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def count_cap():
+    """(the largest count a pack takes, why): :data:`COUNT_MAX`, or what a quarter of this
+    machine's physical memory holds at :data:`BYTES_PER_ELEMENT` if that is fewer."""
+    mem = _physical_memory()
+    why = (f"the cap: {COUNT_MAX} elements for the work (about 0.1 ms per element-step), "
+           f"and memory at {BYTES_PER_ELEMENT // 1024} KiB per element in the engine")
+    if mem is None:
+        return COUNT_MAX, why
+    by_mem = int(mem // 4 // BYTES_PER_ELEMENT)
+    why += f" (a quarter of {mem / 2 ** 30:.1f} GiB holds {by_mem})"
+    return min(COUNT_MAX, by_mem), why
 
 #: Solver sweeps (position, velocity), the page's.
 ITERATIONS = (10, 8)
@@ -46,8 +77,9 @@ ITERATIONS = (10, 8)
 #: shell probes).
 BUILD = dict(n=32, shell_resolution=112, target_shell_points=1200)
 
-ELEMENT_FORMS = (f"one of {sorted(ELEMENTS)}, an Element, a (builder, root) pair or a path "
-                 "to an .npz holding node_ints, node_reals, root")
+ELEMENT_FORMS = (f"one of {sorted(ELEMENTS)} (optionally with parameters, NAME:KEY=V,...), an "
+                 "Element, a (builder, root) pair or a path to an .npz holding node_ints, "
+                 "node_reals, root")
 
 
 @dataclass
@@ -118,11 +150,23 @@ def _diameter(el: Element):
 
 
 def _resolve_element(value):
-    """An Element from the accepted forms (cheap: builds the tree only)."""
+    """An Element from the accepted forms (cheap: builds the tree only).
+
+    A library element takes its construction parameters as ``"NAME:KEY=V,KEY=V"`` (the
+    command line's ``--element pall_ring:thickness=0.024,n_windows=5``; a triple is written
+    ``a/b/c``) or as ``(NAME, {KEY: V})``; every parameter is checked against
+    ``elements.PARAMS`` (name, number, range given the others) and the constructor's
+    cross-checks, errors naming ``element``, the parameter and its accepted range.
+    """
     if isinstance(value, Element):
         return value
     if isinstance(value, str) and value in ELEMENTS:
         return ELEMENTS[value]()
+    if (isinstance(value, str) and ":" in value and not value.endswith(".npz")) \
+            or (isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], str)
+                and isinstance(value[1], dict)):
+        kind, params = parse_element(value, "element")
+        return ELEMENTS[kind](**params)
     if isinstance(value, (str, os.PathLike)) and str(value).endswith(".npz") \
             and os.path.isfile(value):
         try:
@@ -156,9 +200,27 @@ def _user_element(b, root, name):
 _MODELS = {}
 
 
+#: Most shell probes the thin-wall rule of :func:`element_model` may ask for (a wall thinner
+#: than the spacing this allows keeps this many).
+MAX_RULE_PROBES = 60_000
+
+
 def element_model(el: Element, build=None):
     """Measure ``el`` (quadrature, principal frame, shell probes) into an :class:`ElementModel`
-    (cached per process by the tree's bits, so an ensemble measures its element once)."""
+    (cached per process by the tree's bits, so an ensemble measures its element once).
+
+    Probe density follows the thinnest wall. With ``t = el.min_feature`` (the thinnest wall or
+    web, in the element's length unit; NaN for a user's tree: no rule) and A the shell's
+    marching-cubes area, the probes' even-spread spacing ``sqrt(2 A / (sqrt(3) N))``
+    (``shell.even_spacing``) must be <= t, so both faces of every wall, and the rim face of
+    width t, carry probes (farthest-point thinning leaves the far face of a wall thinner than
+    the spacing bare). The page's count (``BUILD``, 1200) is kept whenever it meets the rule
+    (the library defaults all do: the page's ring is bit for bit unchanged); otherwise the
+    shell is rebuilt with ``N = shell.count_for_spacing(A, t)`` probes (at most
+    :data:`MAX_RULE_PROBES`). The marching-cubes lattice likewise gets at least 2 cells across
+    t (``shell_resolution >= 2 extent / t``, at most 1024). Knobs given in ``build`` are
+    taken as they are.
+    """
     from peclet.core.geom.transforms import quat_to_matrix
     from peclet.dem import scene_particle
 
@@ -178,7 +240,7 @@ def element_model(el: Element, build=None):
                              np.full(3, 1.0 / (0.4 * mass * r * r)), r, d, el.root, vol,
                              sphere=True)
     else:
-        sp = scene_particle.build(el.builder, el.root, bounds=el.bounds, **kw)
+        sp = _build_following_walls(scene_particle, el, kw, build or {})
         b = geom.SceneBuilder.decode(sp.node_ints, sp.node_reals)
         env = -1
         tq, qq, sq = home_transform(b, el.root, sp.home_root)
@@ -195,6 +257,28 @@ def element_model(el: Element, build=None):
     return model
 
 
+def _build_following_walls(scene_particle, el, kw, given):
+    """``scene_particle.build`` with the thin-wall rule of :func:`element_model`."""
+    from peclet.core.geom.shell import count_for_spacing
+
+    t = float(el.min_feature)
+    if not (math.isfinite(t) and t > 0):
+        return scene_particle.build(el.builder, el.root, bounds=el.bounds, **kw)
+    kw = dict(kw)
+    if "shell_resolution" not in given:
+        extent = float(np.max(np.asarray(el.bounds[1]) - np.asarray(el.bounds[0])))
+        kw["shell_resolution"] = int(min(1024, max(kw["shell_resolution"],
+                                                   math.ceil(2.0 * extent / t))))
+    sp = scene_particle.build(el.builder, el.root, bounds=el.bounds, **kw)
+    if "target_shell_points" in given or sp.spacing["even_spacing"] <= t:
+        return sp
+    need = min(MAX_RULE_PROBES, count_for_spacing(sp.spacing["area"], t))
+    if need <= kw["target_shell_points"]:
+        return sp
+    return scene_particle.build(el.builder, el.root, bounds=el.bounds,
+                                **dict(kw, target_shell_points=int(need)))
+
+
 @dataclass
 class PackResult:
     """What :func:`pack` returns: ``pack`` (the frozen state, a ``freeze.Pack``; ``box`` is the
@@ -202,7 +286,8 @@ class PackResult:
     Simulation), ``steps``, ``seconds`` (stepping wall-clock), ``ke`` (kinetic energy after
     every step, mass D^2 / time^2), ``spec`` (JSON-able inputs), ``state`` (the protocol's
     RunState), ``complete`` (False when ``max_steps`` stopped it early), ``element`` (the
-    ElementModel)."""
+    ElementModel), ``first_step_seconds`` (the first step's wall-clock, which holds the
+    kernels' compilation on a cold cache; :meth:`ms_per_step` leaves it out)."""
 
     pack: Pack
     container: Container
@@ -214,6 +299,22 @@ class PackResult:
     state: RunState
     complete: bool
     element: ElementModel
+    first_step_seconds: float = 0.0
+
+    def ms_per_step(self):
+        """Milliseconds per step after the first (whose compilation on a cold cache is not a
+        stepping rate); the whole run's average when it took one step."""
+        if self.steps > 1:
+            return 1e3 * (self.seconds - self.first_step_seconds) / (self.steps - 1)
+        return 1e3 * self.seconds / max(self.steps, 1)
+
+    @property
+    def landed(self):
+        """The landing rule (``protocols``): no body moved faster than LAND_SPEED D/time when
+        the quench started (None for a run stopped before it; details in
+        ``state.landing``)."""
+        rec = self.state.landing if self.state is not None else None
+        return None if rec is None else bool(rec["landed"])
 
     def state_hash(self):
         """SHA-256 (hex) of the positions' then the quaternions' float64 bytes."""
@@ -229,8 +330,11 @@ def _set_threads(threads):
 
 
 def _check_run_args(count, seed, threads, progress, max_steps, checkpoint_dir,
-                    checkpoint_every):
-    count = check_int("count", count, 1)
+                    checkpoint_every, name="count"):
+    cap, why = count_cap()
+    count = check_int(name, count, 1)
+    if count > cap:
+        raise PecletArgumentError(name, f"an integer in [1, {cap}]", count, why)
     seed = check_int("seed", seed, 0)
     check_bool("progress", progress)
     if threads is not None:
@@ -258,7 +362,9 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
          max_steps=None, checkpoint_dir=None, checkpoint_every=None, build=None):
     """Pack ``count`` copies of ``element`` into ``container`` by ``protocol``.
 
-    element: a library name (``peclet.packing.ELEMENTS``), an Element, a (builder, root) pair
+    element: a library name (``peclet.packing.ELEMENTS``), with construction parameters as
+    ``"pall_ring:thickness=0.024,n_windows=5"`` or ``("pall_ring", {"thickness": 0.024})``
+    (``elements.PARAMS``; checked, see ``peclet pack -h``), an Element, a (builder, root) pair
     (authoring frame) or the path of an .npz with node_ints, node_reals, root.
     container: "box:L" (periodic, the page's), "column:N" (diameter N D, floor y = 0),
     "walled:Lx,Lz", a Container, or a (builder, root) tree of the fluid region (its complement
@@ -267,7 +373,8 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
     generator seed (>= 0). threads: Numba threads (None keeps the current). max_steps: stop
     after this many steps in all (the result then has ``complete=False``). checkpoint_dir /
     checkpoint_every: checkpoint every K steps (see :func:`resume`). build: overrides of
-    ``scene_particle.build``'s knobs (n, shell_resolution, target_shell_points).
+    ``scene_particle.build``'s knobs (n, shell_resolution, target_shell_points), taken as
+    given; those not given follow the thinnest wall (:func:`element_model`).
     Returns a :class:`PackResult`.
     """
     count, seed, max_steps, every = _check_run_args(count, seed, threads, progress, max_steps,
@@ -276,15 +383,22 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
     cont = parse_container(container)
     mat = as_material(material, "material")
     wmat = mat if wall_material is None else as_material(wall_material, "wall_material")
+    if isinstance(element, (str, os.PathLike)) and str(element).endswith(".npz") \
+            and not os.path.isfile(element):
+        raise PecletArgumentError("element", ELEMENT_FORMS, element,
+                                  "it is a directory" if os.path.isdir(element)
+                                  else "it does not exist")
     el = _resolve_element(element)
     if build is not None and not isinstance(build, dict):
         raise PecletArgumentError("build", "a dict of scene_particle.build knobs", build)
     cont = cont.bound(_diameter(el))
-    if proto.kind == "rain":   # enclosure of the insertion zone, before measuring the element
-        c0, r0, _ = el.builder.node_bound(el.root)
-        proto.start(dict(container=cont, body=Body(-1, 1.0, np.ones(3),
-                                                   float(np.linalg.norm(c0) + r0),
-                                                   cont.d), count=count), None)
+    # before measuring the element, with its authoring bounding ball for r_b: rain, the
+    # enclosure of the insertion zone; page, the element fits and the start cloud's rules
+    # (both run again on the measured element)
+    c0, r0, _ = el.builder.node_bound(el.root)
+    proto.start(dict(container=cont, body=Body(-1, 1.0, np.ones(3),
+                                               float(np.linalg.norm(c0) + r0), cont.d),
+                     count=count), np.random.default_rng(seed))
     spec = dict(element=el.name, element_params=_jsonable(el.params),
                 container=cont.to_spec(), count=count, protocol=proto.to_spec(),
                 material=mat.to_dict(), wall_material=wmat.to_dict(), seed=seed,
@@ -303,8 +417,10 @@ def resume(checkpoint_dir, progress=True, max_steps=None, threads=None, checkpoi
     would); keeps checkpointing there every ``checkpoint_every`` steps (None: as before).
     Returns a :class:`PackResult`."""
     if checkpoint_dir is None or not ckpt.is_checkpoint(checkpoint_dir):
+        missing = isinstance(checkpoint_dir, (str, os.PathLike)) \
+            and not os.path.exists(checkpoint_dir)
         raise PecletArgumentError("checkpoint_dir", "a peclet pack checkpoint directory",
-                                  checkpoint_dir)
+                                  checkpoint_dir, "it does not exist" if missing else "")
     _, _, max_steps, every = _check_run_args(1, 0, threads, progress, max_steps, None, None)
     if checkpoint_every is not None:
         every = check_int("checkpoint_every", checkpoint_every, 1)
@@ -319,6 +435,17 @@ def resume(checkpoint_dir, progress=True, max_steps=None, threads=None, checkpoi
     resumed = None if sim is None else (sim, RunState.from_json(state, ke))
     return _run(model, cont, proto, mat, wmat, spec, int(spec["seed"]), progress, max_steps,
                 checkpoint_dir, every, resumed)
+
+
+def compile_note():
+    """The line a run prints before its first step when the DEM kernels are not in Numba's
+    cache yet (else None)."""
+    from peclet.dem.simulation import step_kernels_cached
+
+    if step_kernels_cached() is False:
+        return ("compiling the DEM kernels (first run only: about 2 minutes on 2 cores; Numba "
+                "caches them for every later run)")
+    return None
 
 
 def _run(model, cont, proto, mat, wmat, spec, seed, progress, max_steps, cdir, every, resumed):
@@ -344,9 +471,11 @@ def _run(model, cont, proto, mat, wmat, spec, seed, progress, max_steps, cdir, e
         body.shape_id = 0                  # the run's only shape
         rng.bit_generator.state = st.rng
     ctx["y_top"] = y_top
-    bar = Progress(proto.estimate_steps(spec["count"]), f"pack {model.name} ",
-                   enabled=progress)
-    bar.update(st.step, st.label or None)
+    total = proto.estimate_steps(spec["count"])
+    bar = Progress(total, f"pack {model.name} ", enabled=progress,
+                   initial=min(st.step, total), note=compile_note())
+    if st.label:
+        bar.update(0, st.label)
 
     def on_step(s):
         bar.update(1, s.label)
@@ -360,6 +489,8 @@ def _run(model, cont, proto, mat, wmat, spec, seed, progress, max_steps, cdir, e
     finally:
         bar.close()
     seconds = time.perf_counter() - t0
+    _warn_landing(st.landing, model.name)
+    first = bar.first_seconds if bar.first_seconds is not None else 0.0
     n = sim.num_particles()
     pos = np.array(sim.get_positions(), dtype=np.float64).reshape(n, 3)
     q = np.array(sim.get_quaternions(), dtype=np.float64).reshape(n, 4)
@@ -368,7 +499,31 @@ def _run(model, cont, proto, mat, wmat, spec, seed, progress, max_steps, cdir, e
     pk = Pack(pos, q, list(cont.period), model.volume, model.node_ints, model.node_reals,
               model.home_root, model.bounding_radius, model.shell, model.mass,
               model.inv_inertia, model.envelope_root, model.envelope_volume, model.axis_home)
-    return PackResult(pk, cont, sim, st.step, seconds, st.ke, spec, st, st.done, model)
+    return PackResult(pk, cont, sim, st.step, seconds, st.ke, spec, st, st.done, model,
+                      min(first, seconds))
+
+
+def landing_message(rec):
+    """One line saying how a run broke the landing rule (``rec``: ``RunState.landing``)."""
+    if rec["moving"]:
+        why = (f"{rec['moving']} of {rec['bodies']} elements moved faster than "
+               f"{rec['threshold']:g} D/time (up to {rec['max_speed']:.3g}) when the quench "
+               f"started at step {rec['step']}")
+    else:
+        why = (f"the start cloud's top needs {rec['fall_time']:.3f} time units of free fall, "
+               f"more than the {rec['landing_time']:.3f} before the quench (step "
+               f"{rec['step']})")
+    return (f"the bed did not land: {why}: the quench froze falling elements; give the run "
+            "more steps (a larger steps scale) or fewer elements")
+
+
+def _warn_landing(rec, name):
+    if rec is not None and not rec["landed"]:
+        import warnings
+
+        from .protocols import LandingWarning
+
+        warnings.warn(f"pack {name}: {landing_message(rec)}", LandingWarning, stacklevel=3)
 
 
 def _jsonable(x):

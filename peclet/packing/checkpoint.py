@@ -10,15 +10,24 @@ A checkpoint directory holds
   step, inserted count, calm steps, the numpy generator's state) and ``ke.npy`` (the history);
 - ``checkpoint.json``: names the latest complete ``ckpt-<step>``.
 
+Every part carries the run's id (a random 128-bit hex drawn by :func:`init`): ``spec.json``
+(``run``), ``element.npz`` (``run_id``), ``checkpoint.json`` (``run``) and each
+``ckpt-<step>/run.json`` (``run``, with the SHA-256 of that step's ``sim.npz``, ``state.json``
+and ``ke.npy``). :func:`read` refuses parts whose ids disagree or whose files are not the ones
+hashed (a checkpoint assembled from two runs would resume into a wrong bed); a checkpoint
+written before run ids (no part carries one) is read as before.
+
 A checkpoint is written into a temporary directory and renamed into place; only then is
 ``checkpoint.json`` replaced (atomically) and the older one removed. An interrupt (Ctrl-C) at
 any moment leaves ``checkpoint.json`` naming a complete checkpoint.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
+import uuid
 
 import numpy as np
 
@@ -29,6 +38,22 @@ __all__ = ["POINTER", "is_checkpoint", "init", "write", "read"]
 
 POINTER = "checkpoint.json"
 _KIND = "peclet pack checkpoint"
+_RUN = "run.json"
+_HASHED = ("sim.npz", "state.json", "ke.npy")
+
+
+def _sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def run_id(path):
+    """The run id of the checkpoint at ``path`` (``spec.json``'s), None if it has none."""
+    with open(os.path.join(os.fspath(path), "spec.json")) as fh:
+        return json.load(fh).get("run")
 
 
 def is_checkpoint(path):
@@ -45,12 +70,13 @@ def init(path, spec, element):
         raise PecletArgumentError("checkpoint_dir", "a directory without a checkpoint (resume "
                                   "an existing one with peclet.packing.resume)", p)
     os.makedirs(p, exist_ok=True)
+    run = uuid.uuid4().hex
 
     def w(tmp):
         with open(tmp, "wb") as fh:
-            np.savez(fh, **element)
+            np.savez(fh, run_id=np.array(run), **element)
     atomic_write(os.path.join(p, "element.npz"), w)
-    write_json(os.path.join(p, "spec.json"), dict(kind=_KIND, spec=spec))
+    write_json(os.path.join(p, "spec.json"), dict(kind=_KIND, run=run, spec=spec))
 
 
 def write(path, sim, state):
@@ -58,6 +84,7 @@ def write(path, sim, state):
     p = os.fspath(path)
     name = f"ckpt-{state.step:09d}"
     final = os.path.join(p, name)
+    run = run_id(p)
     for old in os.listdir(p):          # debris of an interrupted write
         if old.startswith(".tmp-ckpt-"):
             shutil.rmtree(os.path.join(p, old), ignore_errors=True)
@@ -66,9 +93,13 @@ def write(path, sim, state):
             sim.save(os.path.join(tmp, "sim.npz"))
             write_json(os.path.join(tmp, "state.json"), state.to_json())
             np.save(os.path.join(tmp, "ke.npy"), np.asarray(state.ke, dtype=np.float64))
+            write_json(os.path.join(tmp, _RUN), dict(
+                kind=_KIND, run=run,
+                sha256={f: _sha256(os.path.join(tmp, f)) for f in _HASHED}))
 
         atomic_directory(final, fill, prefix=".tmp-ckpt-")
-    write_json(os.path.join(p, POINTER), dict(kind=_KIND, latest=name, step=state.step))
+    write_json(os.path.join(p, POINTER), dict(kind=_KIND, run=run, latest=name,
+                                               step=state.step))
     for old in os.listdir(p):
         if old.startswith("ckpt-") and old != name:
             shutil.rmtree(os.path.join(p, old), ignore_errors=True)
@@ -94,10 +125,22 @@ def read(path, name="checkpoint_dir"):
             raise ValueError
         with np.load(os.path.join(p, "element.npz"), allow_pickle=False) as z:
             element = {k: z[k] for k in z.files}
+        elem_run = element.pop("run_id", None)
+        ids = {"spec.json": meta.get("run"), POINTER: ptr.get("run"),
+               "element.npz": None if elem_run is None else str(elem_run)}
         latest = ptr.get("latest")
+        d = None if latest is None else os.path.join(p, os.path.basename(latest))
+        step_run = None
+        if d is not None and os.path.isfile(os.path.join(d, _RUN)):
+            with open(os.path.join(d, _RUN)) as fh:
+                step_run = json.load(fh)
+            ids[f"{os.path.basename(d)}/{_RUN}"] = step_run.get("run")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        raise bad from None
+    _check_parts(name, p, ids, d, step_run)
+    try:
         if latest is None:
             return meta["spec"], element, None, None, np.zeros(0)
-        d = os.path.join(p, os.path.basename(latest))
         sim = Simulation.load(os.path.join(d, "sim.npz"))
         with open(os.path.join(d, "state.json")) as fh:
             state = json.load(fh)
@@ -107,6 +150,27 @@ def read(path, name="checkpoint_dir"):
     return meta["spec"], element, sim, state, ke
 
 
+def _check_parts(name, p, ids, d, step_run):
+    """Refuse a checkpoint whose parts carry different run ids (or, some of them, none), or
+    whose step files are not the ones its ``run.json`` hashed."""
+    what = "a checkpoint whose parts all come from one run"
+    given = {k: v for k, v in ids.items() if v is not None}
+    if given:                                   # else written before run ids: no id to check
+        lost = d is not None and step_run is None
+        if len(set(given.values())) > 1 or len(given) != len(ids) or lost:
+            parts = ", ".join(f"{k}: {v[:8] if v else 'no run id'}" for k, v in ids.items())
+            if lost:
+                parts += f", {os.path.basename(d)}/{_RUN}: missing"
+            raise PecletArgumentError(name, what, p, f"mixed parts ({parts})")
+    if d is not None and step_run is not None:
+        for f, h in (step_run.get("sha256") or {}).items():
+            fp = os.path.join(d, f)
+            if not os.path.isfile(fp) or _sha256(fp) != h:
+                raise PecletArgumentError(name, what, p, f"{os.path.basename(d)}/{f} is not "
+                                          "the file its run.json hashed (from another run?)")
+
+
 def mark_started(path):
     """Point ``checkpoint.json`` at no step yet (a run that starts from its beginning)."""
-    write_json(os.path.join(os.fspath(path), POINTER), dict(kind=_KIND, latest=None, step=0))
+    p = os.fspath(path)
+    write_json(os.path.join(p, POINTER), dict(kind=_KIND, run=run_id(p), latest=None, step=0))

@@ -1,9 +1,9 @@
 """Containers of a pack: the page's periodic box, a column, a walled box, any CSG tree.
 
-World frame (DESIGN.md §8): y up, gravity along -y, the floor's top face at y = 0. A container
-is a set of static wall trees (``Simulation.add_analytic_wall``) plus the lateral geometry the
-protocols need to place elements (:meth:`Container.sample_xz`) and that the analysis needs
-(:attr:`Container.period`, the ``Pack.box``).
+World frame (docs/architecture.md §10): y up, gravity along -y, the floor's top face at y = 0. A
+container is a set of static wall trees (``Simulation.add_analytic_wall``) plus the lateral
+geometry the protocols need to place elements (:meth:`Container.sample_xz`) and that the analysis
+needs (:attr:`Container.period`, the ``Pack.box``).
 
 Sizes given in a spec string are in element diameters D (the element's envelope outer
 diameter); :meth:`Container.bound` turns them into world lengths for a given D.

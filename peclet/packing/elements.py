@@ -5,10 +5,11 @@ axis on +y, lengths in the user's unit; the Pall-ring defaults are in units of t
 diameter D = 1, as on the reference page) and returns an :class:`Element`, which unpacks as
 ``builder, root = pall_ring()``.
 
-Certified by construction (DESIGN.md §3): the solid that bounds the element (a distance-exact
-tube, torus, sphere or cone) is always the LEFT child of every difference/intersection, and
-everything on the right is 1-Lipschitz, so ``builder.node_bound(root)[2]`` is True for every
-element and the scene query may prune it. Each constructor checks that claim before returning.
+Certified by construction (docs/architecture.md §4): the solid that bounds the element (a
+distance-exact tube, torus, sphere or cone) is always the LEFT child of every
+difference/intersection, and everything on the right is 1-Lipschitz, so
+``builder.node_bound(root)[2]`` is True for every element and the scene query may prune it. Each
+constructor checks that claim before returning.
 
 Where it is meaningful an element also carries its *envelope*: the convex solid it is inscribed
 in (the cylinder of a ring, the element itself for a sphere or a solid cylinder), as a tree in
@@ -26,7 +27,8 @@ from peclet.core import geom
 from peclet.core.geom.transforms import compose, quat_to_matrix
 
 __all__ = ["Element", "pall_ring", "raschig_ring", "berl_saddle", "intalox_saddle", "sphere",
-           "solid_cylinder", "ELEMENTS", "qy"]
+           "solid_cylinder", "ELEMENTS", "qy", "Param", "PARAMS", "parse_element",
+           "element_text", "element_defaults", "check_param"]
 
 #: The reference page's Pall ring, in units of the outer diameter.
 PAGE_PALL = dict(r_outer=0.5, height=1.0, thickness=0.12, n_windows=4, window_y=0.24,
@@ -286,3 +288,241 @@ def solid_cylinder(radius=0.5, height=1.0, builder=None):
 #: Constructors by name (the CLI and tests iterate over it).
 ELEMENTS = {"pall_ring": pall_ring, "raschig_ring": raschig_ring, "berl_saddle": berl_saddle,
             "intalox_saddle": intalox_saddle, "sphere": sphere, "solid_cylinder": solid_cylinder}
+
+
+# ---------------------------------------------------------------------- element parameters
+@dataclass(frozen=True)
+class Param:
+    """One construction parameter of a library element, as the command line and a
+    :class:`~peclet.ensemble.spec.PackSpec` may set it.
+
+    ``kind``: ``"float"``, ``"int"`` or ``"triple"`` (three numbers written ``a/b/c``).
+    ``lo``/``hi``: the accepted interval of a number (open per ``lo_open``/``hi_open``); ``hi``
+    may be a callable of the element's resolved parameters returning ``(hi, hi_open, why)``
+    where the bound depends on the others. ``doc``: one line (lengths in the element's unit,
+    see :data:`PARAMS`). Cross-constraints not expressed by the interval are stated in ``doc``
+    and checked by the constructor.
+    """
+
+    name: str
+    kind: str
+    doc: str
+    lo: float = 0.0
+    hi: object = math.inf
+    lo_open: bool = True
+    hi_open: bool = False
+
+    def bounds(self, params):
+        """(lo, hi, lo_open, hi_open, why) of this parameter given the resolved ``params``."""
+        if callable(self.hi):
+            hi, hi_open, why = self.hi(params)
+            return self.lo, hi, self.lo_open, hi_open, why
+        return self.lo, self.hi, self.lo_open, self.hi_open, ""
+
+    def range_text(self, params, why=True):
+        """The accepted range as text, e.g. ``in (0, 0.16] (< r_outer = 0.5, ...)`` (the
+        reasons for a dependent bound only with ``why``)."""
+        if self.kind == "triple":
+            return "three numbers a/b/c, each > 0"
+        lo, hi, lo_open, hi_open, reason = self.bounds(params)
+        rng = f"{'(' if lo_open else '['}{lo:g}, {'inf' if math.isinf(hi) else f'{hi:g}'}" \
+              f"{')' if hi_open or math.isinf(hi) else ']'}"
+        text = ("an integer in " if self.kind == "int" else "in ") + rng
+        return text + (f" ({reason})" if reason and why else "")
+
+
+def _pall_thickness_hi(p):
+    wr, web_x = p["window_half"][0], p["web_half"][0]
+    cands = [(p["r_outer"], True, "< r_outer"), (wr, False, "<= window_half radial"),
+             (2.0 * (p["r_outer"] - web_x), False, "<= 2 (r_outer - web_half x)")]
+    hi, hi_open, _ = min(cands, key=lambda c: (c[0], not c[1]))
+    why = ", ".join(f"{w} = {v:g}" for v, _, w in cands)
+    return hi, hi_open, why
+
+
+#: Every library element's parameters (lengths in the element's own unit: the defaults make
+#: the envelope diameter D = 1, so with the defaults a length IS in element diameters; the
+#: containers of ``pack`` are always in D, D = 2 r_outer, 2 radius or 2 R).
+PARAMS = {
+    "pall_ring": (
+        Param("r_outer", "float", "outer radius (D = 2 r_outer); default 0.5"),
+        Param("height", "float", "tube height along the axis; default 1.0"),
+        Param("thickness", "float", "wall thickness, < r_outer, <= window_half radial and "
+              "<= 2 (r_outer - web_half x); default 0.12 (t/D = 0.12, the page's)",
+              hi=_pall_thickness_hi),
+        Param("n_windows", "int", "windows per row (lower row offset by half a pitch); "
+              "default 4", lo=1, hi=16, lo_open=False),
+        Param("window_y", "float", "height of the two window rows and webs (+-window_y); "
+              "default 0.24", lo=0.0, lo_open=False,
+              hi=lambda p: (0.5 * p["height"], True, "< height/2")),
+        Param("window_half", "triple", "window box half-extents radial/axial/tangential, "
+              "radial >= thickness, axial < height/2; default 0.16/0.17/0.13"),
+        Param("web_half", "triple", "web plate half-extents x/y/z, x <= r_outer - "
+              "thickness/2; default 0.4/0.06/0.06"),
+    ),
+    "raschig_ring": (
+        Param("r_outer", "float", "outer radius (D = 2 r_outer); default 0.5"),
+        Param("height", "float", "tube height; default 1.0"),
+        Param("thickness", "float", "wall thickness, < r_outer; default 0.12",
+              hi=lambda p: (p["r_outer"], True, "< r_outer")),
+    ),
+    "berl_saddle": (
+        Param("R", "float", "torus centre-line radius (D = 2 R); default 0.5"),
+        Param("r", "float", "torus tube radius, < R; default 0.2",
+              hi=lambda p: (p["R"], True, "< R")),
+    ),
+    "intalox_saddle": (
+        Param("R", "float", "torus centre-line radius (D = 2 R); default 0.5"),
+        Param("r", "float", "torus tube radius, < R; default 0.3",
+              hi=lambda p: (p["R"], True, "< R")),
+        Param("thickness", "float", "sheet thickness, < r; default 0.06",
+              hi=lambda p: (p["r"], True, "< r")),
+    ),
+    "sphere": (
+        Param("radius", "float", "radius (D = 2 radius); default 0.5"),
+    ),
+    "solid_cylinder": (
+        Param("radius", "float", "radius (D = 2 radius); default 0.5"),
+        Param("height", "float", "height along the axis; default 1.0"),
+    ),
+}
+
+
+def element_defaults(kind):
+    """The library element ``kind``'s default parameters (name -> value)."""
+    import inspect
+
+    sig = inspect.signature(ELEMENTS[kind])
+    return {p.name: sig.parameters[p.name].default for p in PARAMS[kind]}
+
+
+def _fmt_value(kind, v):
+    if kind == "int":
+        return str(int(v))
+    if kind == "triple":
+        return "/".join(repr(float(x)) for x in v)
+    return repr(float(v))
+
+
+def element_text(kind, params):
+    """Canonical text of a library element with the given (checked) parameters: the name,
+    then ``:k=v,...`` in :data:`PARAMS` order, floats as their shortest round-trip repr,
+    triples as ``a/b/c`` (``"pall_ring"`` when none is given)."""
+    given = [p for p in PARAMS[kind] if p.name in params]
+    if not given:
+        return kind
+    return kind + ":" + ",".join(f"{p.name}={_fmt_value(p.kind, params[p.name])}"
+                                 for p in given)
+
+
+def check_param(kind, pname, value, params=None, arg="element", shown=None):
+    """``value`` (a number or text) of parameter ``pname`` of library element ``kind``
+    converted and range-checked against the others (``params``: the given ones, defaults for
+    the rest). Raises PecletArgumentError naming ``arg`` with the parameter and its accepted
+    range; ``shown`` is the value reported (default: ``value``)."""
+    from peclet.core.validation import PecletArgumentError
+
+    shown = value if shown is None else shown
+    table = {p.name: p for p in PARAMS[kind]}
+    if pname not in table:
+        raise PecletArgumentError(arg, f"a parameter of {kind} ({', '.join(table)})", shown,
+                                  f"unknown parameter {pname!r}")
+    p = table[pname]
+    ctx = dict(element_defaults(kind), **(params or {}))
+    what = f"{kind} with {pname} {p.range_text(ctx)}"
+    if p.kind == "triple":
+        parts = value.split("/") if isinstance(value, str) else value
+        try:
+            arr = tuple(float(x) for x in parts)
+        except (TypeError, ValueError):
+            raise PecletArgumentError(arg, what, shown, f"{pname} is not three numbers") \
+                from None
+        if len(arr) != 3 or not all(math.isfinite(x) and x > 0 for x in arr):
+            raise PecletArgumentError(arg, what, shown, f"{pname} out of range")
+        return arr
+    if isinstance(value, bool):
+        raise PecletArgumentError(arg, what, shown, f"{pname} is not a number")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise PecletArgumentError(arg, what, shown, f"{pname} is not a number") from None
+    if p.kind == "int":
+        if not (math.isfinite(v) and v.is_integer()):
+            raise PecletArgumentError(arg, what, shown, f"{pname} is not an integer")
+        v = int(v)
+    lo, hi, lo_open, hi_open, _ = p.bounds(ctx)
+    ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) \
+        and (v < hi if hi_open else v <= hi)
+    if not ok:
+        raise PecletArgumentError(arg, what, shown, f"{pname} = {v:g} out of range")
+    return v
+
+
+def parse_element(value, arg="element"):
+    """A library element with parameters -> ``(kind, params)``, ``params`` the given ones,
+    checked (names, numbers, ranges against each other; the constructor's own cross-checks
+    too). Accepted forms: ``"pall_ring"``, ``"pall_ring:thickness=0.024,n_windows=5"`` (the
+    command line's; a triple is written ``a/b/c``) and ``("pall_ring", {"thickness": 0.024})``.
+    Raises PecletArgumentError naming ``arg``, the parameter and its accepted range."""
+    from peclet.core.validation import PecletArgumentError
+
+    forms = (f"a library element {sorted(ELEMENTS)}, optionally with parameters "
+             "NAME:KEY=V,KEY=V (see peclet pack -h)")
+    if isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], str) \
+            and isinstance(value[1], dict):
+        kind, items = value[0], list(value[1].items())
+    elif isinstance(value, str):
+        kind, sep, rest = value.partition(":")
+        kind = kind.strip()
+        items = []
+        if sep:
+            if not rest.strip():
+                raise PecletArgumentError(arg, forms, value, "no parameters after ':'")
+            for tok in rest.split(","):
+                k, eq, v = tok.partition("=")
+                if not eq or not k.strip() or not v.strip():
+                    raise PecletArgumentError(arg, forms, value, f"bad item {tok.strip()!r} "
+                                              "(KEY=VALUE expected)")
+                items.append((k.strip(), v.strip()))
+    else:
+        raise PecletArgumentError(arg, forms, value)
+    if kind not in ELEMENTS:
+        raise PecletArgumentError(arg, forms, value, f"unknown element {kind!r}")
+    names = [k for k, _ in items]
+    if len(set(names)) != len(names):
+        raise PecletArgumentError(arg, forms, value, "a parameter given twice")
+    # names and number syntax first, then ranges against the resolved others
+    table = {p.name: p for p in PARAMS[kind]}
+    raw = {}
+    for k, v in items:
+        if not isinstance(k, str) or k not in table:
+            raise PecletArgumentError(arg, f"a parameter of {kind} ({', '.join(table)})",
+                                      value, f"unknown parameter {k!r}")
+        raw[k] = v
+    loose = {}                    # syntax first (a triple's own check has no range)
+    for k, v in raw.items():
+        try:
+            loose[k] = tuple(float(x) for x in (v.split("/") if isinstance(v, str) else v)) \
+                if table[k].kind == "triple" else float(v)
+        except (TypeError, ValueError):
+            check_param(kind, k, v, {}, arg, value)   # raises: not a number
+        if isinstance(v, bool):
+            check_param(kind, k, v, {}, arg, value)
+    params = {k: check_param(kind, k, raw[k], loose, arg, value) for k in raw}
+    try:
+        ELEMENTS[kind](**params)
+    except ValueError as exc:
+        raise PecletArgumentError(arg, f"{kind} parameters consistent with each other "
+                                  "(see peclet pack -h)", value, str(exc)) from None
+    return kind, params
+
+
+def params_help():
+    """Every library element's parameters as ``-h`` text."""
+    lines = []
+    for kind, ps in PARAMS.items():
+        d = element_defaults(kind)
+        items = "; ".join(f"{p.name} {p.range_text(d, False) if p.kind != 'triple' else 'a/b/c'}"
+                          f": {p.doc}" for p in ps)
+        lines.append(f"{kind}: {items}")
+    return ". ".join(lines)

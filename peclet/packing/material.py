@@ -1,37 +1,17 @@
-"""Contact material of a pack: restitution and friction (element-element or element-wall)."""
+"""Contact material of a pack: restitution and friction (element-element or element-wall).
+
+:class:`Material` is :class:`peclet.dem.materials.Material` (one type in the whole package);
+this module adds :func:`as_material`, the packing layer's reader of user input.
+"""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-
-from peclet.core.validation import PecletArgumentError, check_float
+from peclet.core.validation import PecletArgumentError
+from peclet.dem.materials import Material
 
 __all__ = ["Material", "as_material"]
 
 
-@dataclass(frozen=True)
-class Material:
-    """Contact material (dimensionless).
-
-    e_n: normal restitution in [0, 1]; e_t: tangential (Walton) restitution in [-1, 1] (the
-    DEM's ``set_material_params``); mu: Coulomb friction >= 0. For a wall only e_n and mu are
-    used (the DEM's walls carry no tangential restitution). The defaults are the page's.
-    """
-
-    e_n: float = 0.15
-    e_t: float = 0.0
-    mu: float = 0.5
-
-    def __post_init__(self):
-        object.__setattr__(self, "e_n", check_float("e_n", self.e_n, 0.0, 1.0))
-        object.__setattr__(self, "e_t", check_float("e_t", self.e_t, -1.0, 1.0))
-        object.__setattr__(self, "mu", check_float("mu", self.mu, 0.0))
-
-    def as_tuple(self):
-        """(e_n, e_t, mu), the order of ``Simulation.set_material_params``."""
-        return (self.e_n, self.e_t, self.mu)
-
-    def to_dict(self):
-        return asdict(self)
+# one Material type in the whole package: the DEM's (page defaults e_n 0.15, e_t 0, mu 0.5)
 
 
 def as_material(value, name="material"):

@@ -4,7 +4,7 @@ World frame: y up, gravity -g y, an analytic box floor whose top face is y = 0, 
 and z over [0, L). Every count, speed and factor is an argument with the page's value as its
 default. The start cloud is the page's algorithm, driven by ``numpy.random.default_rng(seed)``,
 so a seed reproduces it exactly; the DEM step itself is deterministic at any thread count
-(DESIGN.md §5), so the whole pour is reproducible from the seed.
+(docs/architecture.md §7), so the whole pour is reproducible from the seed.
 
 This is the page's entry point; the protocol itself (:class:`PageProtocol`, the start cloud and
 the stepping loop) lives in :mod:`peclet.packing.protocols`, shared with
@@ -27,7 +27,8 @@ from .protocols import start_cloud as _start_cloud
 
 __all__ = ["Protocol", "PourResult", "start_cloud", "pour", "y_top_for"]
 
-#: The page's protocol (kept under its old name).
+#: The page's protocol, kept under its old name (not the base class of every protocol,
+#: :class:`peclet.packing.protocols.Protocol`).
 Protocol = PageProtocol
 
 #: The page's domain top; a taller start cloud raises it (see :func:`y_top_for`).
@@ -54,6 +55,7 @@ class PourResult:
     steps: int = 0
     seconds: float = 0.0
     protocol: Protocol = None
+    first_step_seconds: float = 0.0
 
 
 def start_cloud(n, box, seed=5, y0=1.2, gap=1.55, dy=0.15, lookback=14):
@@ -102,7 +104,9 @@ def pour(particle, n=48, box=3.5, seed=5, protocol=None, material=(0.15, 0.0, 0.
     insert_bodies(sim, body, P0, Q0, np.zeros_like(P0))
 
     res = PourResult(sim, sid, None, None, P0.copy(), protocol=proto)
-    bar = Progress(proto.total_steps, "pall-ring pour ", enabled=progress)
+    from .api import compile_note
+
+    bar = Progress(proto.total_steps, "pall-ring pour ", enabled=progress, note=compile_note())
     dt = proto.dt
 
     def on_step(st):
@@ -118,6 +122,7 @@ def pour(particle, n=48, box=3.5, seed=5, protocol=None, material=(0.15, 0.0, 0.
     st = drive(sim, proto, ctx, RunState(ke=res.ke), None, on_step=on_step)
     res.ke = st.ke
     res.seconds = time.perf_counter() - t0
+    res.first_step_seconds = min(res.seconds, bar.first_seconds or 0.0)
     bar.close()
     res.positions = np.array(sim.get_positions(), dtype=np.float64)
     q = np.array(sim.get_quaternions(), dtype=np.float64)

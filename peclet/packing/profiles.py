@@ -25,7 +25,7 @@ import numpy as np
 from peclet.core.validation import (PecletArgumentError, check_array, check_bool, check_float,
                                     check_int)
 
-from .analysis import PackGeometry, contacts, fraction_se
+from .analysis import PackGeometry, fraction_se, probe_overlap
 from .freeze import Pack
 
 __all__ = ["ColumnSection", "BoxSection", "periodic_section", "PackSampler", "radial_profile",
@@ -255,12 +255,26 @@ def bulk(pack, section, floor_y=0.0, top_y=None, d_elem=1.0, crop=2.0, n_windows
             f"{max((top - y0) / (2 * d), 0.0):.3g} for this bed)", crop,
             f"bed from y = {y0:g} to its top at {top:g}")
     edges = lo + (hi - lo) * np.arange(nw + 1) / nw
+    # a window no element's bounding sphere reaches holds no bed: refused, not eps = 1 +- 0
+    ys, rb = pack.positions[:, 1], float(pack.bounding_radius)
+    for a, b in zip(edges[:-1], edges[1:]):
+        if not np.any((ys - rb < b) & (ys + rb > a)):
+            raise PecletArgumentError(
+                "pack", "a bed that reaches every bulk window (no element reaches the window "
+                f"y in [{a:.4g}, {b:.4g}): the bed is a film or has a gap)", f"{pack.n} elements",
+                f"centres from y = {ys.min():.4g} to {ys.max():.4g}, bounding radius {rb:.4g}")
     rng = np.random.default_rng(seed)
     x, z = section.sample(rng, nw * n)
     y = edges[:-1, None] + rng.random((nw, n)) * np.diff(edges)[:, None]
     pts = np.column_stack([x, y.ravel(), z])
     smp = _sampler_for(pack, section)
     solid, _ = _fractions(smp.solid(pts), nw, n)
+    if not np.all(solid > 0):
+        k = int(np.flatnonzero(~(solid > 0))[0])
+        raise PecletArgumentError(
+            "samples_per_window", "enough samples for every window to hit an element", n,
+            f"no sample of window y in [{edges[k]:.4g}, {edges[k + 1]:.4g}) hit one: eps "
+            "would be 1 +- 0; the bed is too sparse there (a film) or the samples too few")
     eps_w = 1.0 - solid
     out = dict(windows=np.column_stack([edges[:-1], edges[1:]]), eps_windows=eps_w,
                eps=float(eps_w.mean()), eps_se=float(eps_w.std(ddof=1) / math.sqrt(nw)),
@@ -299,20 +313,22 @@ def orientation_to_axis(pack, axis=(0.0, 1.0, 0.0)):
 
 
 def coordination(pack, walls=(), gap=0.0, periodic=False):
-    """Contacts per element, counting other elements AND walls.
+    """Contacts per element, counting other elements AND walls, from the DEM engine's own
+    contact detection (:func:`peclet.packing.coordination.engine_coordination`: exact for
+    spheres, the narrow phase for composed elements).
 
-    Element-element contacts are :func:`peclet.packing.analysis.contacts` (the probe-inside test
-    both ways, within ``gap``); ``periodic`` says whether the pack's box is periodic in x and z
-    (False for a column or walled box: no images are then considered). ``walls`` is a sequence
-    of ``(builder, root)`` trees in the world frame, phi < 0 inside the wall material (e.g. a
-    column's complement, a floor); an element touches a wall when one of its surface probes
-    (``pack.shell``, placed by its pose) has wall phi < ``gap``. Each wall tree counts as one
-    contact partner, so a ring standing on the floor has a contact and is not a rattler.
+    ``walls`` is a sequence of ``(builder, root)`` trees in the world frame, phi < 0 inside the
+    wall material (e.g. a column's complement, a floor), each one contact partner;
+    ``gap`` (a length >= 0) the contact threshold on the engine's gap; ``periodic`` whether the
+    pack's box is periodic in x and z (False for a column or walled box: no images).
 
-    Returns a dict: elem (N,) element contacts, wall (N,) walls touched, total (N,), z_elem and
-    z_total (means), rattlers (elements with no contact of either kind), wall_min_phi (N, n_walls)
-    the lowest wall phi over each element's probes, and the element pass's max_depth.
+    Returns the engine's dict (elem, wall, total, z_elem, z_total, rattlers, under_stable,
+    pairs, gap, min_gap, method) and ``probe_max_depth``, the deepest surface probe of one
+    element inside another (:func:`peclet.packing.analysis.probe_overlap`: the overlap depth,
+    which the probes measure, not a contact count).
     """
+    from .coordination import engine_coordination
+
     pack = _check_pack(pack)
     per = check_bool("periodic", periodic)
     g = check_float("gap", gap, 0.0)
@@ -320,25 +336,16 @@ def coordination(pack, walls=(), gap=0.0, periodic=False):
     for k, w in enumerate(walls):
         if not (isinstance(w, (tuple, list)) and len(w) == 2 and hasattr(w[0], "eval_root")):
             raise PecletArgumentError(f"walls[{k}]", "a (SceneBuilder, root) pair", w)
-    if len(pack.shell) == 0:
-        raise PecletArgumentError("pack", "a pack with surface probes (pack.shell)", "no shell")
-    if not per:
-        # images one box apart would touch across the wall: put them out of every element's reach
-        ext = np.ptp(pack.positions, axis=0).max() + 4.0 * pack.bounding_radius + 1.0
-        pack_c = dataclasses.replace(pack, box=np.array([ext, ext]))
+    out = engine_coordination(pack, walls, gap=g, periodic=per)
+    if len(pack.shell):
+        if not per:
+            # images one box apart would touch across the wall: put them out of every reach
+            ext = np.ptp(pack.positions, axis=0).max() + 4.0 * pack.bounding_radius + 1.0
+            pack = dataclasses.replace(pack, box=np.array([ext, ext]))
+        out["probe_max_depth"] = probe_overlap(PackGeometry(pack))["max_depth"]
     else:
-        pack_c = pack
-    ee = contacts(PackGeometry(pack_c), gap=g)
-    world = np.einsum("nij,mj->nmi", pack.rotations(), pack.shell) + pack.positions[:, None, :]
-    flat = np.ascontiguousarray(world.reshape(-1, 3))
-    wmin = np.empty((pack.n, len(walls)))
-    for k, (b, root) in enumerate(walls):
-        wmin[:, k] = b.eval_root(root, flat).reshape(pack.n, -1).min(axis=1)
-    wall = (wmin < g).sum(axis=1)
-    total = ee["counts"] + wall
-    return dict(elem=ee["counts"], wall=wall, total=total, z_elem=float(ee["counts"].mean()),
-                z_total=float(total.mean()), rattlers=int((total < 1).sum()),
-                wall_min_phi=wmin, max_depth=ee["max_depth"])
+        out["probe_max_depth"] = math.nan
+    return out
 
 
 # ---------------------------------------------------------------------- sphere correlations

@@ -9,20 +9,39 @@ elements inserted, consecutive calm steps, the numpy generator's state, kinetic-
 is all it keeps between steps, so a checkpoint of the Simulation plus the RunState resumes a
 run bit for bit (``checkpoint.py``). :func:`drive` is the one stepping loop of every protocol
 and of ``pour.pour``.
+
+Landing rule (every protocol): when the quench starts (or, for a run without a quench, when it
+ends) :func:`drive` records in ``RunState.landing`` how many bodies move faster than
+:data:`LAND_SPEED` (1 D/time: the speed of a free fall of 0.05 D, the rain protocol's default
+``rest_speed`` for a body at rest on the bed). A run with any such body did not land: its
+quench froze falling or bouncing elements, and the result is flagged (``PackResult.landed``
+False, a :class:`LandingWarning`; ``peclet pack`` refuses to analyse it). Recording reads the
+state only: a run's bits are the same with or without it. The page protocol's landing can
+also be predicted before any work from its start cloud (:meth:`PageProtocol.check_landing`,
+the rule of ``peclet pall-ring``).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 
 from peclet.core.validation import PecletArgumentError, check_float, check_int
 
-__all__ = ["PageProtocol", "RainProtocol", "RunState", "Body", "start_cloud", "drive",
-           "parse_protocol", "new_simulation", "insert_bodies"]
+__all__ = ["Protocol", "Phase", "PROTOCOLS", "PageProtocol", "RainProtocol", "RunState", "Body",
+           "start_cloud", "drive", "parse_protocol", "new_simulation", "insert_bodies",
+           "LAND_SPEED", "LandingWarning", "landing_state"]
 
 G = 9.81
+
+#: A body moving faster than this (D/time) when the quench starts has not landed.
+LAND_SPEED = 1.0
+
+
+class LandingWarning(RuntimeWarning):
+    """A run's quench started while elements were still falling (see the module notes)."""
 
 
 def _check_fields(obj, ints=(), floats=()):
@@ -57,6 +76,8 @@ class RunState:
     label: str = ""
     rng: dict = None
     ke: list = field(default_factory=list)
+    #: the landing rule's record (:func:`landing_state`), None until the quench starts
+    landing: dict = None
 
     def to_json(self):
         d = asdict(self)
@@ -68,15 +89,155 @@ class RunState:
         return cls(ke=list(ke), **d)
 
 
+# ---------------------------------------------------------------------------- base
+class Phase(NamedTuple):
+    """What a protocol does around its next step: the phase's ``label`` (shown by the progress
+    bar, stored in ``RunState.label``), how many tap ``kicks`` go before the step and whether
+    the quench ``damp``-s the velocities after it."""
+
+    label: str
+    kicks: int
+    damp: bool
+
+
+#: kind -> protocol class: every :class:`Protocol` subclass that names its ``kind``
+PROTOCOLS = {}
+
+
+class Protocol:
+    """The base of every deposition protocol (page, rain; a stirred column or a drum next).
+
+    A protocol is a frozen dataclass of its parameters (``dt``, the time step, among them) with
+    a class attribute ``kind``, its name in specs, checkpoints and :func:`parse_protocol`
+    (defining the subclass registers it). It keeps nothing between steps but the
+    :class:`RunState`, so it is resumable. A subclass writes its schedule:
+
+    - :meth:`start` (the bodies it starts with) and, if that returns no top, :meth:`top_bound`;
+    - :meth:`now`: the :class:`Phase` of the next step (label, kicks, quench or not);
+    - :meth:`after_step`: advance the schedule from the step's kinetic energy (``st.done`` set
+      at the end), usually with :meth:`count_calm`, :meth:`settled` and :meth:`next_phase`;
+    - :meth:`before_step` if it acts on the bodies or walls before the step: rain inserts a
+      batch there; a moving-wall protocol poses and moves its walls there
+      (``Simulation.set_wall_transform`` / ``set_wall_velocity``);
+    - :meth:`phases`, :meth:`estimate_steps` and :meth:`quench_next` (the landing rule's
+      moment, see the module notes).
+
+    and inherits the one :meth:`step` (before_step -> kicks -> ``sim.step(dt)`` -> quench ->
+    bookkeeping -> after_step), the tap (:meth:`kick`), the quench (:meth:`quench`), the
+    kinetic-energy stop rule and :meth:`to_spec`. The shared code reads the parameters it needs
+    from the subclass by name: ``tap_speed`` (the kick), ``damp`` (the quench), ``ke_tol``,
+    ``calm_steps`` and ``settle_steps`` (the stop rule).
+    """
+
+    kind = ""
+    #: time before the quench starts, where the schedule fixes it (the landing rule)
+    landing_time = None
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.__dict__.get("kind"):
+            PROTOCOLS[cls.kind] = cls
+
+    # -- the schedule, written by each protocol
+    def start(self, ctx, rng):
+        """(positions, quaternions, velocities, top y or None) of the bodies the run starts
+        with (arrays of 0 rows for none); refuses a container or count it cannot start in."""
+        raise NotImplementedError
+
+    def top_bound(self, ctx):
+        """A height no body reaches (the domain's top when :meth:`start` returns no top)."""
+        raise NotImplementedError(f"{type(self).__name__} sizes its domain from its start")
+
+    def now(self, st):
+        """The :class:`Phase` of the step after ``st``."""
+        raise NotImplementedError
+
+    def before_step(self, sim, ctx, st, rng):
+        """Act on the bodies or walls before the step's kicks (nothing by default)."""
+
+    def after_step(self, sim, ctx, st, ke):
+        """Advance the schedule after a step whose kinetic energy is ``ke`` (``st.step`` and
+        ``st.label`` are already updated); set ``st.done`` when the run is complete."""
+        raise NotImplementedError
+
+    def phases(self):
+        """[(label, first step)] of the phases in order; the first step is None where a stop
+        rule, not the schedule, decides it."""
+        raise NotImplementedError
+
+    def estimate_steps(self, count):
+        """The run's total steps for ``count`` elements (an estimate where a stop rule
+        decides; the progress bar's total)."""
+        raise NotImplementedError
+
+    def quench_next(self, st):
+        """Whether the next step is the quench's first (the landing rule's moment; never for
+        a protocol without a quench: its landing is recorded at the end)."""
+        return False
+
+    # -- the shared step and its parts
+    def step(self, sim, ctx, st, rng):
+        """One step from ``st`` (updated in place); returns the kinetic energy after it."""
+        label, kicks, damp = self.now(st)
+        self.before_step(sim, ctx, st, rng)
+        for _ in range(kicks):
+            self.kick(sim, ctx)
+        sim.step(self.dt)
+        if damp:
+            self.quench(sim)
+        ke = float(sim.kinetic_energy())
+        st.step += 1
+        st.label = label
+        self.after_step(sim, ctx, st, ke)
+        return ke
+
+    def kick(self, sim, ctx):
+        """The tap: add ``tap_speed`` D/time (+y) to every body's velocity."""
+        v = np.array(sim.get_velocities(), dtype=np.float64)
+        v[:, 1] += self.tap_speed * ctx["body"].d
+        sim.set_velocities(v)
+
+    def quench(self, sim):
+        """Multiply every linear and angular velocity by ``damp``."""
+        sim.set_velocities(np.asarray(sim.get_velocities()) * self.damp)
+        sim.set_angular_velocities(np.asarray(sim.get_angular_velocities()) * self.damp)
+
+    def count_calm(self, sim, ctx, st, ke):
+        """The stop rule's counter: ``st.calm`` counts the consecutive steps whose kinetic
+        energy ``ke`` per element is below ``ke_tol`` m g D (reset by any other step)."""
+        body = ctx["body"]
+        ke_per = ke / (max(sim.num_particles(), 1) * body.mass * G * body.d)
+        st.calm = st.calm + 1 if ke_per < self.ke_tol else 0
+
+    def settled(self, st):
+        """The stop rule: calm for ``calm_steps`` steps, or ``settle_steps`` steps spent (the
+        step budget) in the current phase."""
+        return st.calm >= self.calm_steps or st.in_phase >= self.settle_steps
+
+    @staticmethod
+    def next_phase(st, n_phases):
+        """Move ``st`` to the next of ``n_phases`` phases (done after the last)."""
+        st.phase += 1
+        st.in_phase = 0
+        st.calm = 0
+        st.done = st.phase >= n_phases
+
+    def to_spec(self):
+        """``{"kind": kind, parameter: value, ...}``: JSON-able, :func:`parse_protocol`'s
+        input (specs and checkpoints store it)."""
+        return dict(kind=self.kind, **{f.name: getattr(self, f.name) for f in fields(self)})
+
+
 # ---------------------------------------------------------------------------- page
 @dataclass(frozen=True)
-class PageProtocol:
+class PageProtocol(Protocol):
     """The page's protocol (its values by default).
 
     pour_steps free fall and settling; ``taps`` times: add ``tap_speed`` (D/time, +y) to every
     body's velocity, then ``tap_steps``; ``relax_steps``; ``quench_steps`` with every linear
     and angular velocity multiplied by ``damp`` after each step. ``dt`` is the step (time).
-    Every body starts in the page's loose start cloud (:func:`start_cloud`).
+    Every body starts in the page's loose start cloud (:func:`start_cloud`). A fixed schedule:
+    the phase follows from ``st.step`` alone (``st.phase`` stays 0).
     """
 
     pour_steps: int = 1400
@@ -125,44 +286,75 @@ class PageProtocol:
         return [(p[0], p[1]) for p in self._phases()]
 
     def start(self, ctx, rng):
-        """(positions, quaternions, velocities) of the start cloud and the cloud's top y."""
+        """(positions, quaternions, velocities) of the start cloud and the cloud's top y.
+
+        Refuses (PecletArgumentError naming "container") a container the element does not fit
+        in (the rain protocol's rule: a clear width of more than 2 r_b, room above the floor)
+        and (naming "count") a cloud that would rise above a closed container's ceiling."""
         body, cont = ctx["body"], ctx["container"]
         d = body.d
         gap = max(1.55 * d, 2.0 * body.r_b + 0.05 * d)
         y0 = cont.floor_y + max(1.2 * d, body.r_b + 0.1 * d)
+        ceiling = cont.ceiling(body.r_b)
+        if not (y0 <= ceiling and (cont.kind == "tree" or cont.fits(body.r_b))):
+            raise PecletArgumentError(
+                "container", f"a container the element fits in (a clear width > 2 r_b = "
+                f"{2.0 * body.r_b / d:.3f} D and room {y0 / d - cont.floor_y / d:.2f} D above "
+                "the floor for the start cloud)", cont.label())
         P, Q = start_cloud(ctx["count"], cont, rng, y0=y0, gap=gap, dy=0.15 * d,
-                           clearance=body.r_b)
-        return P, Q, np.zeros_like(P), float(P[:, 1].max())
+                           clearance=body.r_b, y_max=ceiling)
+        top = float(P[:, 1].max())
+        ctx["fall_time"] = self.fall_time(ctx, top)     # the landing rule's prediction
+        return P, Q, np.zeros_like(P), top
 
-    def step(self, sim, ctx, st, rng):
-        """One step (a tap's kick first where a tap starts); returns the kinetic energy."""
-        dt = self.dt
-        for label, first, n, kick, _ in self._phases():
-            if kick and first == st.step:
-                v = np.array(sim.get_velocities(), dtype=np.float64)
-                v[:, 1] += self.tap_speed * ctx["body"].d
-                sim.set_velocities(v)
-        label, damp = "", False
-        for lab, first, n, _, dmp in self._phases():
+    @property
+    def landing_time(self):
+        """Time (the page's units) before the quench starts: pour, taps and relaxation."""
+        return self.dt * (self.pour_steps + self.taps * self.tap_steps + self.relax_steps)
+
+    def fall_time(self, ctx, y_cloud):
+        """Free-fall time (the page's units) from ``y_cloud`` to rest on the floor (centre
+        at floor + r_b), g = 9.81 D/time^2."""
+        body, cont = ctx["body"], ctx["container"]
+        h = max(float(y_cloud) - cont.floor_y - body.r_b, 0.0) / body.d
+        return math.sqrt(2.0 * h / G)
+
+    def check_landing(self, ctx, y_cloud, name="count"):
+        """The predicted landing rule (``peclet pall-ring``'s rule 2): a body at the start
+        cloud's top ``y_cloud`` falls freely to rest on the floor (centre at floor + r_b) in
+        ``sqrt(2 h / g)``, g = 9.81 D/time^2; that must not exceed :attr:`landing_time`.
+        PecletArgumentError naming ``name`` (its value: ``ctx["count"]``) otherwise."""
+        body, cont = ctx["body"], ctx["container"]
+        h = max(float(y_cloud) - cont.floor_y - body.r_b, 0.0) / body.d
+        t_fall = self.fall_time(ctx, y_cloud)
+        if t_fall > self.landing_time:
+            raise PecletArgumentError(
+                name, "small enough for the start cloud to land before the quench",
+                ctx["count"],
+                f"the cloud's top is {h:.2f} D above the floor, a free fall of {t_fall:.3f} > "
+                f"{self.landing_time:.3f} time units of pour, taps and relaxation: fewer "
+                "elements, a wider container or a larger steps scale")
+
+    def quench_next(self, st):
+        """Whether the next step is the quench's first (the landing rule's moment)."""
+        return self.quench_steps > 0 and st.step == self.total_steps - self.quench_steps
+
+    def now(self, st):
+        """A tap's kick where a tap starts (one per tap starting at this step); the quench
+        damps throughout its steps."""
+        kicks = sum(1 for _, first, _, kick, _ in self._phases() if kick and first == st.step)
+        for label, first, n, _, damp in self._phases():
             if first <= st.step < first + n:
-                label, damp = lab, dmp
-                break
-        sim.step(dt)
-        if damp:
-            sim.set_velocities(np.asarray(sim.get_velocities()) * self.damp)
-            sim.set_angular_velocities(np.asarray(sim.get_angular_velocities()) * self.damp)
-        st.step += 1
-        st.label = label
-        st.done = st.step >= self.total_steps
-        return float(sim.kinetic_energy())
+                return Phase(label, kicks, damp)
+        return Phase("", kicks, False)
 
-    def to_spec(self):
-        return dict(kind="page", **{f.name: getattr(self, f.name) for f in fields(self)})
+    def after_step(self, sim, ctx, st, ke):
+        st.done = st.step >= self.total_steps
 
 
 # ---------------------------------------------------------------------------- rain
 @dataclass(frozen=True)
-class RainProtocol:
+class RainProtocol(Protocol):
     """Rain deposition: elements inserted in small batches above the bed at a set rate.
 
     Every ``insert_every`` steps up to ``batch`` elements are placed at random (x, z) in the
@@ -178,7 +370,9 @@ class RainProtocol:
     below ``ke_tol`` m g D for ``calm_steps`` consecutive steps, or ``settle_steps`` steps
     (the step budget). Then ``taps`` times: add ``tap_speed`` (D/time, +y) to every velocity,
     ``tap_steps``, settle again. Last, ``quench_steps`` with velocities multiplied by ``damp``
-    after each step. ``dt`` is the time step.
+    after each step, held past them until a step's kinetic energy per element is below
+    ``ke_tol`` m g D (at most ``settle_steps`` more). ``dt`` is the time step. The phase is ``st.phase`` (an index into
+    :meth:`_phases`), ``st.in_phase`` the steps spent in it.
     """
 
     batch: int = 1
@@ -212,6 +406,16 @@ class RainProtocol:
     def _phases(self):
         return ["rain", "settle"] + ["tap", "settle"] * self.taps + \
             (["quench"] if self.quench_steps else [])
+
+    def phases(self):
+        """[(label, first step)]: rain starts at step 0; every later phase starts where the
+        one before it ends, which the stop rule decides (None)."""
+        return [(name, 0 if i == 0 else None) for i, name in enumerate(self._phases())]
+
+    def quench_next(self, st):
+        """Whether the next step is the quench's first (the landing rule's moment)."""
+        ph = self._phases()
+        return st.phase < len(ph) and ph[st.phase] == "quench" and st.in_phase == 0
 
     def estimate_steps(self, count):
         """A rough total for the progress bar (the KE criterion decides the real one)."""
@@ -272,63 +476,63 @@ class RainProtocol:
         insert_bodies(sim, body, np.array(new), q, v)
         st.inserted += k
 
-    def step(self, sim, ctx, st, rng):
-        body = ctx["body"]
-        ph = self._phases()
-        name = ph[st.phase]
-        if name == "rain" and st.in_phase % self.insert_every == 0 \
+    def now(self, st):
+        """A kick at a tap's first step; the quench damps throughout its steps."""
+        name = self._phases()[st.phase]
+        return Phase(name, int(name == "tap" and st.in_phase == 0), name == "quench")
+
+    def before_step(self, sim, ctx, st, rng):
+        """A batch every ``insert_every`` steps of the rain phase while elements are left."""
+        if self._phases()[st.phase] == "rain" and st.in_phase % self.insert_every == 0 \
                 and st.inserted < ctx["count"]:
             if st.in_phase > 50 * self.insert_every * ctx["count"]:
                 raise RuntimeError(f"rain: {st.inserted} of {ctx['count']} elements inserted "
                                    "after 50 tries each: the container is full")
             self._batch(sim, ctx, st, rng)
-        if name == "tap" and st.in_phase == 0:
-            v = np.array(sim.get_velocities(), dtype=np.float64)
-            v[:, 1] += self.tap_speed * body.d
-            sim.set_velocities(v)
-        sim.step(self.dt)
-        if name == "quench":
-            sim.set_velocities(np.asarray(sim.get_velocities()) * self.damp)
-            sim.set_angular_velocities(np.asarray(sim.get_angular_velocities()) * self.damp)
-        ke = float(sim.kinetic_energy())
-        st.step += 1
-        st.in_phase += 1
-        st.label = name
-        ke_per = ke / (max(sim.num_particles(), 1) * body.mass * G * body.d)
-        st.calm = st.calm + 1 if ke_per < self.ke_tol else 0
-        end = {"rain": st.inserted >= ctx["count"],
-               "settle": st.calm >= self.calm_steps or st.in_phase >= self.settle_steps,
-               "tap": st.in_phase >= self.tap_steps,
-               "quench": st.in_phase >= self.quench_steps}[name]
-        if end:
-            st.phase += 1
-            st.in_phase = 0
-            st.calm = 0
-            st.done = st.phase >= len(ph)
-        return ke
 
-    def to_spec(self):
-        return dict(kind="rain", **{f.name: getattr(self, f.name) for f in fields(self)})
+    def after_step(self, sim, ctx, st, ke):
+        """rain ends with the last insertion, settle by the stop rule, tap and quench after
+        their step counts."""
+        ph = self._phases()
+        name = ph[st.phase]
+        st.in_phase += 1
+        self.count_calm(sim, ctx, st, ke)
+        end = {"rain": st.inserted >= ctx["count"],
+               "settle": self.settled(st),
+               "tap": st.in_phase >= self.tap_steps,
+               # the quench holds until the bed is calm (an element that started to roll
+               # during it is damped to rest), at most settle_steps beyond its own steps
+               "quench": st.in_phase >= self.quench_steps
+               and (st.calm > 0 or st.in_phase >= self.quench_steps + self.settle_steps)}[name]
+        if end:
+            self.next_phase(st, len(ph))
+
+
+def _kinds_text():
+    kinds, classes = list(PROTOCOLS), [c.__name__ for c in PROTOCOLS.values()]
+    return ", ".join(f"'{k}'" for k in kinds) + ", " + \
+        ", ".join(f"a {c}" for c in classes[:-1]) + f" or a {classes[-1]}"
 
 
 def parse_protocol(value):
-    """A protocol from "page", "rain", a protocol object or a ``to_spec()`` dict."""
-    if isinstance(value, (PageProtocol, RainProtocol)):
+    """A protocol from its kind ("page", "rain"), a protocol object or a ``to_spec()`` dict."""
+    if isinstance(value, Protocol):
         return value
-    if isinstance(value, str) and value in ("page", "rain"):
-        return PageProtocol() if value == "page" else RainProtocol()
-    if isinstance(value, dict) and value.get("kind") in ("page", "rain"):
+    if isinstance(value, str) and value in PROTOCOLS:
+        return PROTOCOLS[value]()
+    kind = value.get("kind") if isinstance(value, dict) else None
+    if isinstance(kind, str) and kind in PROTOCOLS:
         kw = {k: v for k, v in value.items() if k != "kind"}
         try:
-            return (PageProtocol if value["kind"] == "page" else RainProtocol)(**kw)
+            return PROTOCOLS[kind](**kw)
         except TypeError:
             pass
-    raise PecletArgumentError("protocol", "'page', 'rain', a PageProtocol or a RainProtocol",
-                              value)
+    raise PecletArgumentError("protocol", _kinds_text(), value)
 
 
 # ---------------------------------------------------------------------------- helpers
-def start_cloud(n, container, rng, y0=1.2, gap=1.55, dy=0.15, lookback=14, clearance=0.0):
+def start_cloud(n, container, rng, y0=1.2, gap=1.55, dy=0.15, lookback=14, clearance=0.0,
+                y_max=math.inf):
     """The page's loose non-overlapping start cloud and random orientations.
 
     Bodies are placed one by one at an (x, z) drawn by ``container.sample_xz`` (uniform in
@@ -337,9 +541,19 @@ def start_cloud(n, container, rng, y0=1.2, gap=1.55, dy=0.15, lookback=14, clear
     away horizontally OR vertically; otherwise y grows by ``dy``. Orientations are normalised
     4-D Gaussians (uniform on SO(3)). Returns (positions (n, 3), quaternions (n, 4)), drawn
     from ``rng`` in the page's order.
+
+    The cloud stops at ``y_max`` (a closed container's ceiling for the clearance): a cloud
+    that would rise above it is refused (PecletArgumentError naming "count") instead of
+    climbing forever. In an open container the loop is bounded: each rejection raises y by
+    ``dy``, and after ``gap / dy`` of them in a row y is ``gap`` above every earlier body, so
+    the cloud is at most ``n (gap + dy)`` tall.
     """
     pos, y = [], float(y0)
     while len(pos) < int(n):
+        if y > y_max:
+            raise PecletArgumentError(
+                "count", f"at most what the container holds: the start cloud reached its "
+                f"ceiling y = {y_max:.3f} after {len(pos)} elements", int(n))
         xz = container.sample_xz(rng, clearance, y)
         if xz is None:
             y += dy
@@ -397,11 +611,39 @@ def new_simulation(register, container, material, wall_material, iterations, gra
     return sim, sid
 
 
+def landing_state(sim, ctx, st, protocol=None):
+    """The landing rule's record of the current state (reads it only): step, bodies, bodies
+    moving faster than LAND_SPEED D/time, the largest speed (D/time), the threshold, for the
+    page protocol the start cloud's free-fall time and the time before the quench
+    (``fall_time``, ``landing_time``; None otherwise), and ``landed``: no body that fast and
+    (page) a fall time within the time before the quench. (The speed alone misses bodies
+    still in the air that a tap's upward kick slowed.)"""
+    d = ctx["body"].d
+    n = sim.num_particles()
+    v = np.asarray(sim.get_velocities(), dtype=np.float64).reshape(n, 3) if n \
+        else np.zeros((0, 3))
+    speed = np.sqrt((v * v).sum(axis=1)) / d
+    moving = int(np.count_nonzero(speed > LAND_SPEED))
+    fall = ctx.get("fall_time")
+    before = getattr(protocol, "landing_time", None) if fall is not None else None
+    late = fall is not None and before is not None and fall > before
+    return dict(step=int(st.step), bodies=int(n), moving=moving,
+                max_speed=float(speed.max()) if n else 0.0, threshold=LAND_SPEED,
+                fall_time=fall, landing_time=before, landed=moving == 0 and not late)
+
+
 def drive(sim, protocol, ctx, st, rng, max_steps=None, on_step=None):
     """Step ``protocol`` from ``st`` until it is done or ``st.step`` reaches ``max_steps``;
-    appends each step's kinetic energy to ``st.ke`` and calls ``on_step(st)`` after it."""
+    appends each step's kinetic energy to ``st.ke`` and calls ``on_step(st)`` after it.
+    Records the landing rule (``st.landing``, :func:`landing_state`) when the quench starts,
+    or when a run without a quench ends."""
+    quench_next = getattr(protocol, "quench_next", None)
     while not st.done and (max_steps is None or st.step < max_steps):
+        if st.landing is None and quench_next is not None and quench_next(st):
+            st.landing = landing_state(sim, ctx, st, protocol)
         st.ke.append(protocol.step(sim, ctx, st, rng))
         if on_step is not None:
             on_step(st)
+    if st.done and st.landing is None:
+        st.landing = landing_state(sim, ctx, st, protocol)
     return st

@@ -23,13 +23,19 @@ __all__ = ["analyse", "radial_features", "write_results", "table", "CROP", "CONT
 #: shallow bed so that at least a third of its height remains.
 CROP = 2.0
 
-#: Contact gap for coordination (D), as the page's pipeline (pipeline.CONTACT_GAP).
+#: Contact gap for coordination (D), as the page's pipeline (pipeline.CONTACT_GAP): the
+#: engine's gap between two elements (or an element and a wall) below it is a contact.
 CONTACT_GAP = 1e-3
 
-#: Beds up to this many elements get an ASCII STL with one named solid per element and the
-#: container as its own solid; larger ones one merged binary STL (1000 Pall rings per element
-#: came to 3.0 GB and 115 s), the container then only in the VTU.
+#: With the merged STL layout, beds up to this many elements get an ASCII STL with one named
+#: solid per element and the container as its own solid (about 300 bytes a triangle: 60 MB
+#: for 200 elements at the default 1000 triangles); larger ones one merged binary STL (50
+#: bytes a triangle), the container then only in the VTU.
 STL_PER_ELEMENT_MAX = 200
+
+#: ``stl_layout`` values: one STL file, or a directory ``bed_stl/`` of one binary STL file
+#: per element (and ``container.stl``).
+STL_LAYOUTS = ("merged", "per-element")
 
 
 def _crop(pack, cont):
@@ -55,12 +61,17 @@ def radial_features(z, eps):
 
 
 def analyse(res, out=None, figures=True, samples=100_000, shell_samples=3000, exports=True,
-            spacing=0.04):
+            spacing=0.04, stl_resolution=None, stl_layout="merged"):
     """The bed's analysis as a JSON-able dict; with ``out`` and ``figures``, also the PNG
-    figures (radial profile of a column, axial profile, bed view) and with ``exports`` the
-    STL (one solid per element and the container as its own solid, or merged above
-    :data:`STL_PER_ELEMENT_MAX` elements), VTU (with the container) and transforms CSV.
-    ``timing`` holds the seconds of each part."""
+    figures (radial profile of a column, axial profile, bed view; element meshes at the
+    lattice step ``spacing``, in D) and with ``exports`` the STL (``stl_layout`` "merged": one
+    solid per element and the container as its own solid, or merged above
+    :data:`STL_PER_ELEMENT_MAX` elements; "per-element": the directory ``bed_stl/`` of one
+    binary file per element and ``container.stl``), VTU (with the container) and transforms
+    CSV, the element meshed at ``stl_resolution`` (default
+    :data:`peclet.packing.export.DEFAULT_RESOLUTION`; see :func:`peclet.packing.export.
+    export_mesh`), what the mesh came to in ``rep["export"]``. ``timing`` holds the seconds
+    of each part."""
     from . import profiles
 
     pack, cont, d = res.pack, res.container, res.container.d
@@ -102,11 +113,16 @@ def analyse(res, out=None, figures=True, samples=100_000, shell_samples=3000, ex
     co = profiles.coordination(pack, walls=cont.solid_walls(top + 4 * d), gap=CONTACT_GAP * d,
                                periodic=cont.kind == "box")
     rep["coordination"] = dict(z_total=co["z_total"], z_elem=co["z_elem"],
-                               rattlers=co["rattlers"],
-                               wall_contacts=int(np.sum(co["wall"])))
+                               rattlers=co["rattlers"], under_stable=co["under_stable"],
+                               wall_contacts=int(np.sum(co["wall"])), pairs=co["pairs"],
+                               gap=co["gap"], gap_d=CONTACT_GAP, method=co["method"],
+                               engine_min_gap=co["min_gap"],
+                               probe_max_depth=co["probe_max_depth"],
+                               contacts_per_element=co["total"].tolist())
     timing["axial_orientation_coordination"] = time.perf_counter() - t
     if out is not None and (figures or exports):
-        rep["files"] = _files(res, out, rep, prof, ax, b, figures, exports, spacing, timing)
+        rep["files"] = _files(res, out, rep, prof, ax, b, figures, exports, spacing, timing,
+                              stl_resolution, stl_layout)
     rep["timing"] = timing
     return rep
 
@@ -118,7 +134,8 @@ def _box_section(cont):
     return (cx - hx, cx + hx), (cz - hz, cz + hz)
 
 
-def _files(res, out, rep, prof, ax, b, figures, exports, spacing, timing):
+def _files(res, out, rep, prof, ax, b, figures, exports, spacing, timing,
+           stl_resolution=None, stl_layout="merged"):
     from . import bed_figures, export
 
     pack, cont, d = res.pack, res.container, res.container.d
@@ -141,26 +158,57 @@ def _files(res, out, rep, prof, ax, b, figures, exports, spacing, timing):
         timing["figures"] = time.perf_counter() - t
     if exports:
         t = time.perf_counter()
+        resolution = export.check_bed_triangles(
+            pack.n, export.DEFAULT_RESOLUTION if stl_resolution is None else stl_resolution,
+            "stl_resolution")
+        if stl_layout not in STL_LAYOUTS:
+            from peclet.core.validation import PecletArgumentError
+            raise PecletArgumentError("stl_layout", "one of " + ", ".join(STL_LAYOUTS),
+                                      stl_layout)
+        v0, f0, info = export.export_mesh(pack, resolution, d_elem=d, name="stl_resolution",
+                                          min_feature=getattr(res.element, "min_feature", None))
+        export.check_bed_triangles(pack.n, resolution, "stl_resolution", per_element=len(f0))
+        rep["export"] = dict(info, layout=stl_layout)
         solid = cont.export_solid(rep["bed_top"] + 0.5 * d)
-        per = pack.n <= STL_PER_ELEMENT_MAX
-        files["stl"] = export.write_stl(os.path.join(out, "bed.stl"), pack, per_element=per,
-                                        d_elem=d, container=solid if per else None,
-                                        home_mesh=mesh)["path"]
-        files["vtu"] = export.write_vtu(os.path.join(out, "bed.vtu"), pack, d_elem=d,
-                                        container=solid, home_mesh=mesh)["path"]
+        if solid is not None:  # meshed once for the STL and the VTU
+            solid = export.container_mesh(*solid, max_triangles=export.CONTAINER_TRIANGLES)
+        if stl_layout == "per-element":
+            files["stl"] = export.write_stl_files(os.path.join(out, "bed_stl"), pack,
+                                                  container=solid, home_mesh=(v0, f0))["path"]
+        else:
+            per = pack.n <= STL_PER_ELEMENT_MAX
+            files["stl"] = export.write_stl(os.path.join(out, "bed.stl"), pack,
+                                            per_element=per, container=solid if per else None,
+                                            home_mesh=(v0, f0))["path"]
+        files["vtu"] = export.write_vtu(os.path.join(out, "bed.vtu"), pack, container=solid,
+                                        home_mesh=(v0, f0), resolution=resolution)["path"]
         files["transforms"] = export.write_transforms_csv(os.path.join(out, "transforms.csv"),
                                                           pack, element=res.element.name)
         timing["exports"] = time.perf_counter() - t
     return {k: os.path.abspath(v) for k, v in files.items()}
 
 
+def _element_doc(res):
+    """results.json's ``element``: the name, the resolved construction parameters (lengths in
+    the element's unit, D = 1 at the defaults), their canonical ``--element`` text (re-parsable;
+    None for a user's tree) and the shell probe count the DEM used (it follows the thinnest
+    wall: ``api.element_model``)."""
+    from .elements import ELEMENTS, element_text
+
+    name, params = res.spec.get("element"), res.spec.get("element_params") or {}
+    text = element_text(name, params) if name in ELEMENTS and params else None
+    return dict(name=name, params=params, text=text, shell_probes=int(len(res.element.shell)))
+
+
 def write_results(path, res, rep):
     """``results.json``: the run's spec, its figures (steps, seconds, state hash) and ``rep``."""
     doc = dict(spec=res.spec, run=dict(steps=res.steps, seconds=res.seconds,
-                                       ms_per_step=1e3 * res.seconds / max(res.steps, 1),
+                                       first_step_seconds=res.first_step_seconds,
+                                       ms_per_step=res.ms_per_step(),
                                        complete=res.complete, state_sha256=res.state_hash(),
                                        ke_end=float(res.ke[-1]) if res.ke else None),
                analysis=rep)
+    doc["element"] = _element_doc(res)
     return write_json(path, doc)
 
 
@@ -174,7 +222,8 @@ def table(res, rep):
             ("material (e_n, mu) / wall", f"({m['e_n']:g}, {m['mu']:g}) / "
                                           f"({wm['e_n']:g}, {wm['mu']:g})"),
             ("steps, wall-clock", f"{res.steps} steps, {res.seconds:.1f} s "
-                                  f"({1e3 * res.seconds / max(res.steps, 1):.2f} ms/step)"),
+                                  f"({res.ms_per_step():.2f} ms/step after the first step, "
+                                  f"which took {res.first_step_seconds:.1f} s)"),
             ("bed top (y, D)", f"{rep['bed_top'] / rep['d_elem']:.2f}, crop {rep['crop']:.2f} D"),
             ("bulk voidage eps", f"{bk['eps']:.4f} +- {bk['eps_se']:.4f}")]
     if "benyahia_oneill" in rep:
@@ -188,7 +237,8 @@ def table(res, rep):
                  ("  maximum", fmt(f["max1"])), ("  second minimum", fmt(f["min2"]))]
     o = rep["orientation"]
     rows += [("coordination (with walls)", f"{co['z_total']:.2f} ({co['z_elem']:.2f} element-"
-              f"element), {co['rattlers']} rattlers"),
+              f"element), {co['rattlers']} rattlers, {co['under_stable']} with < 4 contacts "
+              f"(engine contacts, gap < {co['gap_d']:g} D)"),
              ("axis |cos| to the vertical", f"{o['mean']:.3f} +- {o['sem']:.3f} (isotropic "
               f"0.500), S2 {o['s2']:+.3f}"),
              ("state SHA-256", res.state_hash()[:16] + "...")]

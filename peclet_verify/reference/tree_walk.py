@@ -1,6 +1,7 @@
 """The tree walk: phi of a flat encoding evaluated node by node, straight from its definition.
 
-DESIGN.md §2 defines a node's value in its parent frame as ``s * f(R(q)^T (p - t) / s)`` with
+docs/architecture.md §2 defines a node's value in its parent frame as
+``s * f(R(q)^T (p - t) / s)`` with
 ``f`` the leaf formula or the operator of the children's values (union = min, intersection =
 max, difference(a, b) = max(a, -b)). This module applies that definition recursively, in numpy,
 one node at a time; the engine instead composes every leaf's transform down to the root once

@@ -1,6 +1,6 @@
 """A mesh-based signed-distance engine: a foreign engine for peclet certification.
 
-It knows nothing of CSG. For each tree (the flat encoding of DESIGN.md §2) it bakes phi on a
+It knows nothing of CSG. For each tree (the flat encoding of docs/architecture.md §2) it bakes phi on a
 lattice of ``n`` points per axis over a cube holding the root's ball, extracts a triangle mesh
 with marching cubes (:func:`peclet.core.geom.mesh.surface_mesh`), and from then on answers from
 the mesh alone:

@@ -1,4 +1,5 @@
-"""Geometry core: CSG trees of signed-distance leaves over the flat encoding of DESIGN.md §2.
+"""Geometry core: CSG trees of signed-distance leaves over the flat encoding
+(docs/architecture.md §2).
 
 >>> from peclet.core import geom
 >>> b = geom.SceneBuilder()

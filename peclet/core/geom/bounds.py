@@ -1,4 +1,4 @@
-"""Bounding balls and the certificate rule of DESIGN.md §3.
+"""Bounding balls and the certificate rule of docs/architecture.md §4.
 
 A node's *certificate* asserts two things about its field phi in its parent frame:
 

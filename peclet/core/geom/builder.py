@@ -1,6 +1,6 @@
 """`SceneBuilder`: author CSG trees of signed-distance leaves, certify, evaluate and encode them.
 
-Conventions (DESIGN.md §2)
+Conventions (docs/architecture.md §2)
 --------------------------
 - phi < 0 inside the solid, > 0 outside; gradients point outward. Lengths are in the user's unit.
 - A node's value in its parent frame is ``s * f(R^T (p - t) / s)`` for its transform
@@ -82,8 +82,8 @@ class SceneBuilder:
     """A growing table of CSG nodes and scene instances over the flat encoding.
 
     Every ``add_*`` call validates its arguments and returns the new node's index. Any node can
-    serve as a root. ``encode()`` produces the flat arrays of DESIGN.md §2; :meth:`decode`
-    rebuilds a builder from them, re-validating every node.
+    serve as a root. ``encode()`` produces the flat arrays of docs/architecture.md §2;
+    :meth:`decode` rebuilds a builder from them, re-validating every node.
     """
 
     def __init__(self):
@@ -192,7 +192,8 @@ class SceneBuilder:
         """(centre (3,), radius, certified) of ``root``'s ball in its parent frame.
 
         The ball contains the solid. ``certified`` means Equation 1 holds,
-        ``phi(p) >= |p - centre| - radius`` for every p, and phi is 1-Lipschitz (DESIGN.md §3).
+        ``phi(p) >= |p - centre| - radius`` for every p, and phi is 1-Lipschitz
+        (docs/architecture.md §4).
         A tree with a half-space on the left of its root has an infinite radius.
         """
         root = self._check_index(root, "root")

@@ -1,4 +1,4 @@
-"""Equation 1 checked on points: the one home of the certificate's test (DESIGN.md §3).
+"""Equation 1 checked on points: the one home of the certificate's test (docs/architecture.md §4).
 
 A certified node's ball (c, r) promises ``phi(p) >= |p - c| - r`` for every p (Equation 1 of
 the Pall-ring page). Its *slack* at p is ``phi(p) - (|p - c| - r)``: >= 0 where the promise

@@ -1,4 +1,5 @@
-"""Named columns of the flat encoding (DESIGN.md §2): read and write records through these.
+"""Named columns of the flat encoding (docs/architecture.md §2): read and write records through
+these.
 
 Node table: ``node_ints`` (n, 3) int32 rows ``(kind, left, right)`` (children -1 for a leaf) and
 ``node_reals`` (n, 16) float64 rows ``(params[0:8], t[3], q[4] as x, y, z, w, s)``. Instance

@@ -11,7 +11,7 @@ over a table of leaves whose transform to the world (root parent) frame is pre-c
 
 A world point p is mapped to the leaf frame as ``R^T (p - T) / S``; the leaf's value in the
 world frame is ``S * f(.)`` and its gradient ``R grad f``. Because min/max commute with
-positive scaling, this equals the node-by-node definition of DESIGN.md §2.
+positive scaling, this equals the node-by-node definition of docs/architecture.md §2.
 
 Programs of many roots can share one pair of arrays; a root is then addressed by its
 ``[op_begin, op_end)`` range. Nothing here is compiled per tree: every tree goes through the same

@@ -29,7 +29,7 @@ import numpy as np
 
 MAX_PARAMS = 8
 
-#: Kind ids of the CSG operators (DESIGN.md §2).
+#: Kind ids of the CSG operators (docs/architecture.md §2).
 UNION, INTERSECTION, DIFFERENCE = 32, 33, 34
 OPERATOR_NAMES = {UNION: "union", INTERSECTION: "intersection", DIFFERENCE: "difference"}
 

@@ -4,7 +4,7 @@ Conventions: quaternions are ``(x, y, z, w)``, unit, and act as an *active* rota
 ``v_out = R(q) v_in`` (for a body: home/principal frame -> world frame). A transform
 ``(t, q, s)`` maps a point of a node's own frame to its parent's frame as
 ``p_parent = s R(q) p_local + t``; the node's value in the parent frame is
-``s * f(R(q)^T (p_parent - t) / s)`` (DESIGN.md §2).
+``s * f(R(q)^T (p_parent - t) / s)`` (docs/architecture.md §2).
 
 The quaternion kernels are ``@njit(cache=True)``: the same compiled function serves Python
 callers (pass float64 arrays) and Numba kernels (the DEM engine, the rotor step), so there is

@@ -1,0 +1,5 @@
+"""Certification of a DEM engine through the page's API (peclet.dem unless
+``--peclet-dem-backend`` names another): determinism at one thread and across threads,
+contact-buffer growth, and the closed-form mechanics. The same certificates a downstream
+project imports (:mod:`peclet_verify.dem_suite`)."""
+from peclet_verify.dem_suite import *  # noqa: F401,F403
