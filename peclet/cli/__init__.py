@@ -3,6 +3,7 @@
     peclet pall-ring ...   the reference page end to end (peclet.cli.pall_ring)
     peclet pack ...        any element into any container (peclet.cli.pack)
     peclet ensemble ...    many packs at once on Dask (peclet.cli.ensemble)
+    peclet drum ...        a rotating drum: dynamic angle and flow regime (peclet.cli.drum)
 
 Each subcommand module exposes ``add_parser(subparsers)`` (registers its options and sets
 ``func``) and is listed in :data:`SUBCOMMANDS`. A :class:`~peclet.core.validation.
@@ -21,7 +22,7 @@ import sys
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
 #: Modules (relative to this package) that each add one subcommand.
-SUBCOMMANDS = ("pall_ring", "ensemble", "pack")
+SUBCOMMANDS = ("pall_ring", "ensemble", "pack", "drum")
 
 
 #: A token that is a negative number (argparse alone takes only -1 and -.5 for one).

@@ -1,0 +1,724 @@
+"""A rotating drum: the dynamic angle of repose, the flow regime, snapshots (issue 22, item 4).
+
+Geometry and units. Lengths in element diameters D (a sphere's mean diameter, a library
+element's D), gravity 9.81 D/time^2 along -y, the drum's axis along z through the origin.
+The drum is a closed cylinder of radius R and length L (an inverted ``cone`` leaf, turned from
+its native y axis onto z), or with ``ends="periodic"`` a cylinder much longer than the periodic
+cell [-L/2, L/2) in z (no end caps: a slice of a long drum). The drum turns counter-clockwise
+seen from +z at omega = sqrt(Fr g / R) (``froude``), or at ``rpm`` for a grain of ``grain_mm``
+millimetres (Fr = omega^2 R_m / g with R_m = R * grain_mm / 1000 m): the bed climbs the +x side,
+so the free surface rises towards +x and the dynamic angle is atan of its slope.
+
+Wall: ``ribs`` boxes along the axis (default one per 1.25 D of circumference, 0.25 D high,
+0.2 D wide) make it rough: frictional spheres, which cannot resist rolling, otherwise roll on
+a smooth wall like a ball bearing and the bed slips (measured: the wall layer turned at
+0.6-0.9 omega with wall friction 1.0; with the ribs at 0.99 omega). ``ribs=0``: smooth.
+
+Protocol (:class:`Drum`). Fill: ``count`` grains (from ``fill``, the bed's share of the drum's
+volume at a packing fraction of 0.52 for spheres (a thin drum packs loosely) or 0.55 of the
+envelope for elements; the measured fill is reported) on a jittered
+lattice in the drum's lower part (the lowest lattice sites), random orientations; ``relax``
+removes the overlaps; settle (until the kinetic energy per grain is below 1e-4 m g D, at most
+4000 steps). Turn: ``spinup`` degrees at Fr = 1e-2 (optional: a slow run then starts from a
+sheared, inclined bed instead of the flat settled one), ``warmup`` revolutions at the target
+speed, then ``revolutions`` measured. The wall turns by ``Simulation.set_wall_velocity`` (the
+pose advances every step); nothing else acts on the grains.
+
+Measurement (:func:`measure`, every ``sample_every`` steps, reading the state only, so the run's
+bits do not depend on it). Grains in the axial window (caps: farther than 1 D from either cap
+when L > 3 D; periodic: all) are binned in columns of width 1 D along x. In each column the bed
+is the run of grains climbing from the lowest one while the vertical gap between neighbours
+stays <= 1.5 D; its top (centre + radius of the last grain) is the column's surface point.
+Surface points within 1.5 D of the drum's wall are dropped, and the rest (at least 4) fitted by
+a line: the angle. A cubic through the same points gives the surface's S-shape: its largest
+departure from the line (``s_shape``, in R). Per sample also: ``airborne`` (the share of grains
+above their column's bed, more than 1.5 D from the wall: in free flight), ``flowing`` (the share
+moving relative to the drum's rigid rotation by more than 0.1 sqrt(g D)), ``corotating`` (the
+share whose angular velocity about the axis is within 10 % of omega) and ``coverage`` (the
+share of 36 angular sectors holding a grain within 2.5 D of the wall; reported only) and
+``high`` (the share of grains above y = R / 2: none in a tumbling bed of fill <= 0.5, a third
+of a ring on the wall).
+
+Regime (:func:`classify`, over the measured samples), first match wins:
+
+- centrifuging: corotating >= 0.9 and high >= 0.15 (the bed turns with the drum and is
+  carried over the top: a ring stuck to the wall);
+- cataracting: airborne >= 0.01 (grains thrown off the bed);
+- slumping: >= 20 % of the samples at rest in the drum (flowing < 0.02): the bed turns as a
+  body, then avalanches;
+- cascading: mean s_shape >= 0.035 R (a curved, S-shaped surface);
+- rolling: a steady flat surface.
+
+Mellmann's map (Powder Technol. 118 (2001) 251-270, Table 1; fill > 0.1, wall friction
+above the slip limit) gives the Froude ranges :data:`MELLMANN`: slumping 1e-5..1e-3,
+rolling 1e-4..1e-2, cascading 1e-3..1e-1, cataracting 0.1..1, centrifuging >= 1.
+
+Results: ``results.json``, ``snapshots.png`` (cross-sections at a few times, grains coloured by
+speed, the fitted surface), ``angle.png`` (angle against revolutions), and a ParaView time
+series ``drum.pvd`` indexing ``frames/frame_NNNN.vtu`` (grain centres as vertices with radius,
+velocity, speed, speed relative to the drum, shape id; plus the drum's rim circles as lines).
+Every file is written atomically (:mod:`peclet.core.files`).
+
+Subclassing the protocol base (``protocols.Protocol``, being refactored): the drum is a
+protocol with ``start`` = the lattice fill, ``before_step`` = set the wall's angular velocity at
+the start of each phase (spin-up, warm-up, measure), no kicks, no quench, ``after_step`` =
+settle by ``count_calm``/``settled`` and then count steps per phase; the sampling would be an
+``on_step`` callback of ``drive``. This module keeps its own loop only so as not to depend on
+the base while it moves.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from peclet.core import geom
+from peclet.core.files import atomic_write, write_json
+from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
+
+__all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "G", "froude_of_rpm",
+           "rpm_of_froude", "run_drum", "OUTPUTS", "add_drum_wall"]
+
+G = 9.81
+
+#: Mellmann (2001), Table 1: Froude ranges of the transverse forms of motion (fill > 0.1).
+MELLMANN = {"slumping": (1e-5, 1e-3), "rolling": (1e-4, 1e-2), "cascading": (1e-3, 1e-1),
+            "cataracting": (1e-1, 1.0), "centrifuging": (1.0, math.inf)}
+
+#: Regime thresholds (see the module notes).
+CENTRIFUGE_HIGH = 0.15
+CENTRIFUGE_COROTATING = 0.9
+CATARACT_AIRBORNE = 0.01
+SLUMP_REST_SHARE = 0.2
+REST_FLOWING = 0.02
+CASCADE_S_SHAPE = 0.035
+
+#: Wall ribs (``ribs`` > 0): boxes along the axis centred on the wall, protruding
+#: RIB_HEIGHT D into the drum, 2 RIB_HALF_WIDTH D wide (a rough wall: a bed of spheres
+#: otherwise rolls on a smooth wall like a ball bearing instead of turning with it).
+RIB_HEIGHT = 0.25
+RIB_HALF_WIDTH = 0.1
+#: Default rib spacing along the wall (D): ``ribs`` None gives round(2 pi R / RIB_SPACING).
+RIB_SPACING = 1.25
+
+#: Spin-up Froude number (a rolling bed).
+SPINUP_FROUDE = 1e-2
+
+#: What a run writes into its output directory.
+OUTPUTS = ("results.json", "snapshots.png", "angle.png", "drum.pvd", "frames")
+OUTPUT_DIRS = ("frames",)
+
+ENDS = ("caps", "periodic")
+
+
+def froude_of_rpm(rpm, radius_d, grain_mm):
+    """Fr = omega^2 R / g of a drum of ``radius_d`` grain diameters of ``grain_mm`` mm."""
+    om = 2.0 * math.pi * rpm / 60.0
+    return om * om * radius_d * grain_mm * 1e-3 / G
+
+
+def rpm_of_froude(fr, radius_d, grain_mm):
+    return 60.0 / (2.0 * math.pi) * math.sqrt(fr * G / (radius_d * grain_mm * 1e-3))
+
+
+@dataclass(frozen=True)
+class DrumSpec:
+    """A drum run (see the module notes). ``froude`` or ``rpm`` (exactly one); ``wall_mu`` and
+    ``wall_e`` default to ``mu`` and ``e``; ``dt`` None: 4e-3 (spheres) or 2e-3 (elements),
+    at most 0.05 D / (omega R); ``polydispersity`` p (spheres only): radii of 0.5 (1 - p),
+    0.5 and 0.5 (1 + p) D in equal shares."""
+
+    element: str = "sphere"
+    radius: float = 10.0
+    length: float = 4.0
+    ends: str = "caps"
+    fill: float = 0.35
+    froude: float | None = None
+    rpm: float | None = None
+    grain_mm: float = 3.0
+    mu: float = 0.5
+    e: float = 0.3
+    wall_mu: float | None = None
+    wall_e: float | None = None
+    polydispersity: float = 0.1
+    revolutions: float = 2.0
+    warmup: float = 1.0
+    spinup: float = 0.0
+    dt: float | None = None
+    seed: int = 1
+    frames: int = 24
+    snapshots: int = 4
+    ribs: int | None = None
+
+    def checked(self, names=None):
+        """The spec with every field checked (PecletArgumentError naming ``names[field]``,
+        e.g. the command line's flag) and the defaults resolved."""
+        nm = lambda f: (names or {}).get(f, f)  # noqa: E731
+        f = lambda k, lo, hi, lo_open=False: check_float(nm(k), getattr(self, k), lo, hi,  # noqa
+                                                         lo_open)
+        if not isinstance(self.element, str) or not self.element:
+            raise PecletArgumentError(nm("element"), "'sphere' or a library element name",
+                                      self.element)
+        radius = f("radius", 3.0, 200.0)
+        length = f("length", 1.0, 200.0)
+        ends = check_choice(nm("ends"), self.ends, ENDS)
+        fill = f("fill", 0.0, 0.8, True)
+        if (self.froude is None) == (self.rpm is None):
+            raise PecletArgumentError(nm("froude"), f"given, or {nm('rpm')} (exactly one)",
+                                      (self.froude, self.rpm))
+        grain = f("grain_mm", 0.0, 1e4, True)
+        if self.froude is not None:
+            fr = f("froude", 0.0, 100.0, True)
+        else:
+            rpm = f("rpm", 0.0, 1e5, True)
+            fr = froude_of_rpm(rpm, radius, grain)
+            if not fr <= 100.0:
+                raise PecletArgumentError(nm("rpm"), "a speed with Froude number <= 100", rpm,
+                                          f"Fr = {fr:.4g} for R = {radius:g} D of "
+                                          f"{grain:g} mm")
+        mu = f("mu", 0.0, 10.0)
+        e = f("e", 0.0, 1.0)
+        wmu = mu if self.wall_mu is None else f("wall_mu", 0.0, 10.0)
+        we = e if self.wall_e is None else f("wall_e", 0.0, 1.0)
+        poly = check_float(nm("polydispersity"), self.polydispersity, 0.0, 0.5, hi_open=True)
+        revs = f("revolutions", 0.0, 100.0, True)
+        warm = f("warmup", 0.0, 100.0)
+        spin = f("spinup", 0.0, 3600.0)
+        dt = None if self.dt is None else f("dt", 0.0, 0.02, True)
+        seed = check_int(nm("seed"), self.seed, 0, 2 ** 63 - 1)
+        frames = check_int(nm("frames"), self.frames, 0, 10_000)
+        snaps = check_int(nm("snapshots"), self.snapshots, 1, 12)
+        ribs = int(round(2.0 * math.pi * radius / RIB_SPACING)) if self.ribs is None \
+            else check_int(nm("ribs"), self.ribs, 0, 720)
+        return replace(self, radius=radius, length=length, ends=ends, fill=fill, froude=fr,
+                       rpm=None, grain_mm=grain, mu=mu, e=e, wall_mu=wmu, wall_e=we,
+                       polydispersity=poly, revolutions=revs, warmup=warm, spinup=spin, dt=dt,
+                       seed=seed, frames=frames, snapshots=snaps, ribs=ribs)
+
+    @property
+    def omega(self):
+        """Angular speed (rad/time) of the checked spec."""
+        return math.sqrt(self.froude * G / self.radius)
+
+
+def _grains(spec):
+    """(register(sim) -> shape ids, radii of the classes (D), bounding radius r_b, volume per
+    grain (mean, D^3), envelope volume per grain, mass per class, inv inertia per class (k, 3),
+    name)."""
+    if spec.element == "sphere":
+        p = spec.polydispersity
+        radii = [0.5] if p == 0.0 else [0.5 * (1 - p), 0.5, 0.5 * (1 + p)]
+        vols = [4.0 / 3.0 * math.pi * r ** 3 for r in radii]
+        inv_i = [np.full(3, 1.0 / (0.4 * v * r * r)) for r, v in zip(radii, vols)]
+        reg = lambda sim: [sim.add_sphere_shape(r) for r in radii]  # noqa: E731
+        v = float(np.mean(vols))
+        return dict(register=reg, radii=np.array(radii), r_b=max(radii), volume=v, envelope=v,
+                    mass=np.array(vols), inv_inertia=np.array(inv_i), d=1.0, name="sphere")
+    from .api import _resolve_element, element_model
+
+    m = element_model(_resolve_element(spec.element))
+    d = float(m.d)
+    env = m.envelope_volume if np.isfinite(m.envelope_volume) else m.volume
+    return dict(register=lambda sim: [m.register(sim)], radii=np.array([m.bounding_radius / d]),
+                r_b=m.bounding_radius / d, volume=m.volume / d ** 3, envelope=env / d ** 3,
+                mass=np.array([m.mass]), inv_inertia=np.array([m.inv_inertia]), d=d,
+                name=m.name)
+
+
+def _lattice(spec, r_b, count, rng):
+    """Jittered lattice sites in the drum's lower part: the ``count`` lowest of a cubic
+    lattice of spacing 2.04 r_b inside the drum (clear of the wall by r_b), jittered by
+    +-0.15 of the spacing in x and y (``relax`` then removes overlaps)."""
+    R, L = spec.radius, spec.length
+    s = 2.04 * r_b
+    rin = R - r_b - 0.02
+    if spec.ends == "periodic":
+        nz = max(1, int(math.floor(L / s)))
+        zs = -0.5 * L + (np.arange(nz) + 0.5) * (L / nz)
+    else:
+        half = 0.5 * L - r_b - 0.02
+        if half < 0:
+            zs = np.array([0.0])
+        else:
+            nz = int(math.floor(2 * half / s)) + 1
+            zs = np.linspace(-half, half, nz) if nz > 1 else np.array([0.0])
+    g = np.arange(-rin, rin + 1e-12, s)
+    X, Y, Z = np.meshgrid(g, g, zs, indexing="ij")
+    P = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    P = P[P[:, 0] ** 2 + P[:, 1] ** 2 <= rin * rin]
+    order = np.lexsort((P[:, 2], P[:, 0], P[:, 1]))
+    P = P[order]
+    if len(P) < count:
+        return None
+    P = P[:count].copy()
+    P[:, :2] += rng.uniform(-0.15 * s, 0.15 * s, size=(count, 2))
+    return P
+
+
+def add_drum_wall(sim, spec, d):
+    """Add the drum (inverted cylinder along z) to ``sim``; returns the wall index."""
+    R, L = spec.radius * d, spec.length * d
+    half = 0.5 * L if spec.ends == "caps" else 4.0 * L + 2.0 * R
+    b = geom.SceneBuilder()
+    s = math.sqrt(0.5)
+    root = b.add_leaf("cone", [R, R, half], rotation=[s, 0.0, 0.0, s])   # y -> z
+    k = spec.ribs
+    if k:
+        ribs = []
+        for i in range(k):
+            ph = 2.0 * math.pi * (i + 0.5) / k
+            ribs.append(b.add_leaf("box", [RIB_HEIGHT * d, RIB_HALF_WIDTH * d, half],
+                                   translation=[R * math.cos(ph), R * math.sin(ph), 0.0],
+                                   rotation=[0.0, 0.0, math.sin(0.5 * ph),
+                                             math.cos(0.5 * ph)]))
+        while len(ribs) > 1:                     # a balanced union
+            ribs = [b.add_union(ribs[j], ribs[j + 1]) if j + 1 < len(ribs) else ribs[j]
+                    for j in range(0, len(ribs), 2)]
+        root = b.add_difference(root, ribs[0])
+    ni, nr, _, _ = b.encode()
+    return sim.add_analytic_wall(ni, nr, root, True, spec.wall_e, spec.wall_mu)
+
+
+def grain_count(spec, grains):
+    """Grains for the fill: fill * drum volume * packing fraction / grain volume."""
+    phi = 0.52 if spec.element == "sphere" else 0.55
+    vol = math.pi * spec.radius ** 2 * spec.length
+    return max(1, int(round(spec.fill * vol * phi / grains["envelope"])))
+
+
+class Drum:
+    """The drum run of a checked :class:`DrumSpec`: :meth:`build` (a settled bed in a resting
+    drum), then :meth:`advance` phase by phase; :meth:`schedule` gives the phases' steps."""
+
+    def __init__(self, spec):
+        self.spec = spec
+        self.grains = _grains(spec)
+        self.count = grain_count(spec, self.grains)
+        self.d = self.grains["d"]
+        om = spec.omega
+        if spec.dt is not None:
+            self.dt = spec.dt
+        else:
+            base = 4e-3 if spec.element == "sphere" else 2e-3
+            self.dt = min(base, 0.05 / (om * spec.radius))
+        self.omega = om        # g = 9.81 D/time^2 in world lengths: omega and dt keep
+        self.sim = None
+        self.wall = None
+
+    # ------------------------------------------------------------------ setup
+    def check_room(self, name="fill", length_name="length"):
+        """Refuse (before any work) a drum shorter than a grain and a fill its start lattice
+        cannot hold."""
+        if self.spec.ends == "caps" and self.spec.length < 2.0 * self.grains["r_b"] + 0.05:
+            raise PecletArgumentError(length_name, f"at least a grain's bounding diameter "
+                                      f"+ 0.05 D ({2.0 * self.grains['r_b'] + 0.05:.3g} D)",
+                                      self.spec.length)
+        rng = np.random.default_rng(0)
+        if _lattice(self.spec, self.grains["r_b"], self.count, rng) is None:
+            raise PecletArgumentError(name, "a fill the drum holds on its start lattice",
+                                      self.spec.fill, f"{self.count} grains do not fit")
+
+    def build(self, settle_max=4000):
+        """The simulation with the settled bed (returns it; also ``self.sim``)."""
+        from peclet.dem import Simulation
+
+        spec, gr, d = self.spec, self.grains, self.d
+        rng = np.random.default_rng(spec.seed)
+        P = _lattice(spec, gr["r_b"], self.count, rng)
+        if P is None:
+            raise PecletArgumentError("fill", "a fill the drum holds on its start lattice",
+                                      spec.fill, f"{self.count} grains do not fit")
+        n = len(P)
+        cls = rng.integers(0, len(gr["radii"]), n)
+        Q = rng.normal(size=(n, 4)) if spec.element != "sphere" else \
+            np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+        Q /= np.linalg.norm(Q, axis=1)[:, None]
+        sim = Simulation(n + 8)
+        R, L = spec.radius * d, spec.length * d
+        if spec.ends == "periodic":
+            sim.set_domain([-R - 2 * d, -R - 2 * d, -0.5 * L], [R + 2 * d, R + 2 * d, 0.5 * L])
+            sim.enable_periodicity(False, False, True)
+        else:
+            sim.set_domain([-R - 2 * d, -R - 2 * d, -0.5 * L - 2 * d],
+                           [R + 2 * d, R + 2 * d, 0.5 * L + 2 * d])
+        sim.set_gravity(0.0, -G * d, 0.0)
+        sim.set_material_params(spec.e, 0.0, spec.mu)
+        sim.set_solver_iterations(10, 8)
+        sids = np.asarray(gr["register"](sim), np.int32)
+        self.wall = add_drum_wall(sim, spec, d)
+        sim.set_positions(P * d)
+        sim.set_shape_ids(sids[cls])
+        sim.set_quaternions(Q)
+        sim.set_inv_mass(1.0 / gr["mass"][cls])
+        sim.set_inv_inertia(gr["inv_inertia"][cls])
+        sim.set_dt(self.dt)
+        sim.relax(50)
+        self.radii = gr["radii"][cls] * d if spec.element == "sphere" else \
+            np.full(n, 0.5 * d)
+        mg = float(np.mean(gr["mass"][cls])) * G * d * d
+        steps = 0
+        while steps < settle_max:
+            for _ in range(50):
+                sim.step(self.dt)
+            steps += 50
+            if steps >= 100 and sim.kinetic_energy() / (n * mg) < 1e-4:
+                break
+        self.settle_steps = steps
+        self.sim = sim
+        return sim
+
+    # ------------------------------------------------------------------ schedule
+    def schedule(self):
+        """[(phase, omega, steps)]: spin-up (if any), warm-up, measure."""
+        spec, out = self.spec, []
+        if spec.spinup > 0:
+            om_s = max(self.omega, math.sqrt(SPINUP_FROUDE * G / spec.radius))
+            out.append(("spinup", om_s, int(math.ceil(math.radians(spec.spinup) / om_s
+                                                      / self.dt))))
+        per_rev = 2.0 * math.pi / self.omega / self.dt
+        out.append(("warmup", self.omega, int(math.ceil(spec.warmup * per_rev))))
+        out.append(("measure", self.omega, max(1, int(math.ceil(spec.revolutions * per_rev)))))
+        return out
+
+    def sample_every(self):
+        """Steps between samples: 1/90 revolution, at most 0.25 time units, at least 1."""
+        t_rev = 2.0 * math.pi / self.omega
+        return max(1, int(round(min(t_rev / 90.0, 0.25) / self.dt)))
+
+    def turn(self, omega):
+        self.sim.set_wall_velocity(self.wall, angular=(0.0, 0.0, float(omega)))
+
+    def step(self, k=1):
+        for _ in range(k):
+            self.sim.step(self.dt)
+
+    def turned(self):
+        """Angle the drum has turned by (rad), from its pose."""
+        _, q = self.sim.get_wall_transform(self.wall)
+        return 2.0 * math.atan2(q[2], q[3])
+
+
+# ---------------------------------------------------------------------------- measurement
+def _surface(X, r, R, d):
+    """Column tops (xs, ys) of the contiguous bed and the mask of grains above their column's
+    bed (see the module notes)."""
+    col = np.floor(X[:, 0] / d).astype(np.int64)
+    above = np.zeros(len(X), bool)
+    xs, ys = [], []
+    for c in np.unique(col):
+        idx = np.nonzero(col == c)[0]
+        idx = idx[np.argsort(X[idx, 1], kind="stable")]
+        y = X[idx, 1]
+        gaps = np.diff(y)
+        brk = np.nonzero(gaps > 1.5 * d)[0]
+        last = brk[0] if len(brk) else len(idx) - 1
+        above[idx[last + 1:]] = True
+        top = y[last] + r[idx[last]]
+        xc = (c + 0.5) * d
+        if xc * xc + top * top <= (R - 1.5 * d) ** 2:
+            xs.append(xc)
+            ys.append(top)
+    return np.array(xs), np.array(ys), above
+
+
+def measure(X, V, r, R, omega, d=1.0, window=None):
+    """One sample of the state (see the module notes): dict with ``angle`` (degrees, NaN
+    without a free surface of >= 4 points), ``s_shape`` (R), ``airborne``, ``flowing``,
+    ``corotating``, ``coverage``, ``points`` (surface points used) and the fit (``slope``,
+    ``intercept``). ``window``: mask of the grains in the axial measuring window."""
+    X = np.asarray(X, float)
+    V = np.asarray(V, float)
+    n = len(X)
+    w = np.ones(n, bool) if window is None else np.asarray(window, bool)
+    xs, ys, above = _surface(X[w], r[w], R, d)
+    rad = np.hypot(X[:, 0], X[:, 1])
+    out = dict(angle=math.nan, s_shape=math.nan, slope=math.nan, intercept=math.nan,
+               points=int(len(xs)))
+    if len(xs) >= 4:
+        a, b = np.polyfit(xs, ys, 1)
+        out.update(slope=float(a), intercept=float(b), angle=math.degrees(math.atan(a)))
+        if len(xs) >= 6:
+            c3 = np.polyfit(xs, ys, 3)
+            xx = np.linspace(xs.min(), xs.max(), 64)
+            dev = np.abs(np.polyval(c3, xx) - (a * xx + b)) * math.cos(math.atan(a))
+            out["s_shape"] = float(dev.max() / R)
+    inner = rad[w] < R - 1.5 * d
+    out["airborne"] = float(np.count_nonzero(above & inner) / max(1, int(w.sum())))
+    vrig = omega * np.column_stack([-X[:, 1], X[:, 0], np.zeros(n)])
+    rel = np.sqrt(((V - vrig) ** 2).sum(axis=1))
+    out["flowing"] = float(np.mean(rel > 0.1 * math.sqrt(G) * d)) if n else 0.0
+    om_g = (X[:, 0] * V[:, 1] - X[:, 1] * V[:, 0]) / np.maximum(rad * rad, 1e-12)
+    out["corotating"] = float(np.mean(np.abs(om_g - omega) < 0.1 * abs(omega))) if n else 0.0
+    near = rad > R - 2.5 * d
+    sect = np.floor((np.arctan2(X[near, 1], X[near, 0]) + math.pi) / (2 * math.pi) * 36)
+    out["coverage"] = float(len(np.unique(np.clip(sect, 0, 35))) / 36.0)
+    out["high"] = float(np.mean(X[:, 1] > 0.5 * R)) if n else 0.0
+    return out
+
+
+def classify(samples):
+    """The regime of the measured ``samples`` (list of :func:`measure` dicts) and the
+    criteria's values (see the module notes)."""
+    if not samples:
+        return "undetermined", {}
+    m = lambda k: float(np.nanmean([s[k] for s in samples])) \
+        if np.any(np.isfinite([s[k] for s in samples])) else math.nan  # noqa: E731
+    crit = dict(coverage=m("coverage"), corotating=m("corotating"), airborne=m("airborne"),
+                high=m("high"),
+                rest_share=float(np.mean([s["flowing"] < REST_FLOWING for s in samples])),
+                flowing=m("flowing"), s_shape=m("s_shape"))
+    if crit["high"] >= CENTRIFUGE_HIGH and crit["corotating"] >= CENTRIFUGE_COROTATING:
+        return "centrifuging", crit
+    if crit["airborne"] >= CATARACT_AIRBORNE:
+        return "cataracting", crit
+    if crit["rest_share"] >= SLUMP_REST_SHARE:
+        return "slumping", crit
+    if np.isfinite(crit["s_shape"]) and crit["s_shape"] >= CASCADE_S_SHAPE:
+        return "cascading", crit
+    return "rolling", crit
+
+
+def expected_regimes(fr):
+    """Mellmann's regimes whose Froude range holds ``fr`` (bounds included: a Froude number
+    on a boundary, e.g. 1e-2, belongs to both neighbours)."""
+    return [k for k, (lo, hi) in MELLMANN.items() if lo <= fr <= hi]
+
+
+def angle_stats(times, angles, t_rev):
+    """Mean, spread (standard deviation of the means over windows of 1/8 revolution, at least
+    4 windows), sample standard deviation, 5th and 95th percentiles (degrees) of the finite
+    ``angles``."""
+    t = np.asarray(times, float)
+    a = np.asarray(angles, float)
+    ok = np.isfinite(a)
+    if ok.sum() < 2:
+        return dict(mean=math.nan, spread=math.nan, std=math.nan, p05=math.nan, p95=math.nan,
+                    windows=0)
+    t, a = t[ok], a[ok]
+    span = max(t[-1] - t[0], 1e-12)
+    nw = max(4, int(round(span / (t_rev / 8.0))))
+    nw = min(nw, len(a) // 2) or 1
+    edges = np.linspace(t[0], t[-1] + 1e-12, nw + 1)
+    means = [a[(t >= lo) & (t < hi)].mean() for lo, hi in zip(edges[:-1], edges[1:])
+             if np.any((t >= lo) & (t < hi))]
+    return dict(mean=float(a.mean()), spread=float(np.std(means)), std=float(a.std()),
+                p05=float(np.percentile(a, 5)), p95=float(np.percentile(a, 95)),
+                windows=len(means))
+
+
+# ---------------------------------------------------------------------------- the run
+def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous=()):
+    """Run a drum (``spec`` a :class:`DrumSpec`, checked here) and return its results dict;
+    with ``out`` write the outputs there (see the module notes)."""
+    from .progress import Progress
+
+    if threads is not None:
+        from .pipeline_checks import set_threads
+        set_threads(threads)
+    spec = spec.checked()
+    drum = Drum(spec)
+    drum.check_room()
+    t0 = time.perf_counter()
+    sched = drum.schedule()
+    total = sum(s for _, _, s in sched)
+    bar = Progress(total, desc="drum", enabled=progress)
+    sim = drum.build()
+    d, R = drum.d, spec.radius * drum.d
+    if spec.ends == "caps" and spec.length > 3.0:
+        window_half = 0.5 * spec.length * d - d
+    else:
+        window_half = None
+    every = drum.sample_every()
+    t_rev = 2.0 * math.pi / drum.omega
+    frame_at = {max(1, int(round(total * (i + 1) / spec.frames))) for i in range(spec.frames)}
+    snap_at = set(int(round(x)) for x in np.linspace(total - 1, total - 1 - (sched[-1][2] - 1),
+                                                     spec.snapshots))
+    samples, frames, snaps = [], [], []
+    k = 0
+    t_turn = 0.0
+    drum.angle = 0.0
+    for phase, om, steps in sched:
+        drum.turn(om)
+        for i in range(steps):
+            drum.step()
+            k += 1
+            t_turn += drum.dt
+            drum.angle += om * drum.dt
+            if k in frame_at:
+                frames.append(_frame(drum, k, t_turn))
+            if (k - 1) in snap_at:
+                snaps.append(_frame(drum, k, t_turn))
+            if phase != "spinup" and (k % every == 0):
+                X = sim.get_positions()
+                window = None if window_half is None else np.abs(X[:, 2]) < window_half
+                s = measure(X, sim.get_velocities(), drum.radii, R, om, d, window)
+                s.update(t=t_turn, phase=phase, revolutions=drum.angle / (2 * math.pi))
+                samples.append(s)
+            bar.update(1, label=phase)
+    bar.close()
+    wall = time.perf_counter() - t0
+    meas = [s for s in samples if s["phase"] == "measure"]
+    regime, crit = classify(meas)
+    st = angle_stats([s["t"] for s in meas], [s["angle"] for s in meas], t_rev)
+    ang = st if regime != "centrifuging" else dict(st, mean=math.nan)
+    fill_meas = _measured_fill(meas, R)
+    res = dict(spec=asdict(spec), element=drum.grains["name"], grains=drum.count,
+               froude=spec.froude, omega=drum.omega,
+               rpm_for_grain_mm=rpm_of_froude(spec.froude, spec.radius, spec.grain_mm),
+               wall_speed=drum.omega * R, dt=drum.dt, settle_steps=drum.settle_steps,
+               steps=total, sample_every=every, revolutions_turned=drum.angle / (2 * math.pi),
+               regime=regime, mellmann=expected_regimes(spec.froude), criteria=crit,
+               angle=ang, fill_measured=fill_meas, state_hash=sim.state_hash(),
+               seconds=wall, ms_per_step=1e3 * wall / max(total + drum.settle_steps, 1),
+               samples=[{k2: s[k2] for k2 in ("t", "revolutions", "phase", "angle", "s_shape",
+                                              "airborne", "flowing", "corotating",
+                                              "coverage", "high")} for s in samples])
+    if out is not None:
+        _write(out, res, drum, frames, snaps, samples, figures, previous)
+    return res
+
+
+def _measured_fill(samples, R):
+    """The bed's share of the cross-section below the mean surface line (NaN without one)."""
+    b = [s["intercept"] for s in samples if np.isfinite(s.get("intercept", math.nan))]
+    a = [s["slope"] for s in samples if np.isfinite(s.get("slope", math.nan))]
+    if not b:
+        return math.nan
+    h = float(np.mean(b)) * math.cos(math.atan(float(np.mean(a))))   # distance axis -> line
+    h = max(-R, min(R, h))
+    th = 2.0 * math.acos(max(-1.0, min(1.0, -h / R)))   # segment below the line
+    return float((th - math.sin(th)) / (2.0 * math.pi))
+
+
+def _frame(drum, k, t):
+    sim = drum.sim
+    return dict(step=k, t=t, X=sim.get_positions(), V=sim.get_velocities(),
+                shape=sim.get_shape_ids(), turned=drum.angle)
+
+
+def _write(out, res, drum, frames, snaps, samples, figures, previous):
+    from peclet.core.files import clear_outputs
+
+    os.makedirs(out, exist_ok=True)
+    clear_outputs(out, previous)
+    files = ["results.json"]
+    if frames:
+        _write_series(out, drum, frames)
+        files += ["drum.pvd", "frames/"]
+    if figures:
+        _snapshot_figure(os.path.join(out, "snapshots.png"), drum, snaps, res)
+        _angle_figure(os.path.join(out, "angle.png"), samples, res)
+        files += ["snapshots.png", "angle.png"]
+    res["files"] = files
+    write_json(os.path.join(out, "results.json"), res)
+
+
+def _write_series(out, drum, frames):
+    import meshio
+
+    from peclet.core.files import atomic_directory
+
+    R = drum.spec.radius * drum.d
+    L = drum.spec.length * drum.d
+    om = drum.omega
+
+    def fill(tmp):
+        for i, f in enumerate(frames):
+            X, V = f["X"], f["V"]
+            n = len(X)
+            vr = V - om * np.column_stack([-X[:, 1], X[:, 0], np.zeros(n)])
+            th = np.linspace(0, 2 * np.pi, 65)[:-1] + f["turned"]
+            rims = [np.column_stack([R * np.cos(th), R * np.sin(th), np.full(64, z)])
+                    for z in (-0.5 * L, 0.5 * L)]
+            pts = np.vstack([X] + rims)
+            lines = np.array([[n + j * 64 + m, n + j * 64 + (m + 1) % 64]
+                              for j in range(2) for m in range(64)])
+            pad = lambda a: np.concatenate([a, np.zeros((128,) + a.shape[1:], a.dtype)])  # noqa
+            mesh = meshio.Mesh(pts, [("vertex", np.arange(n)[:, None]), ("line", lines)],
+                               point_data={"radius": pad(drum.radii), "velocity": pad(V),
+                                           "speed": pad(np.sqrt((V * V).sum(1))),
+                                           "relative_speed": pad(np.sqrt((vr * vr).sum(1))),
+                                           "shape_id": pad(np.asarray(f["shape"], np.int32))})
+            meshio.write(os.path.join(tmp, f"frame_{i:04d}.vtu"), mesh, file_format="vtu")
+
+    fdir = os.path.join(out, "frames")
+    if os.path.isdir(fdir):
+        import shutil
+        shutil.rmtree(fdir)
+    atomic_directory(fdir, fill)
+    rows = "\n".join(f'    <DataSet timestep="{f["t"]:.9g}" part="0" '
+                     f'file="frames/frame_{i:04d}.vtu"/>' for i, f in enumerate(frames))
+    text = ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" '
+            'byte_order="LittleEndian">\n  <Collection>\n' + rows +
+            "\n  </Collection>\n</VTKFile>\n")
+
+    def w(tmp):
+        with open(tmp, "w") as fh:
+            fh.write(text)
+    atomic_write(os.path.join(out, "drum.pvd"), w)
+
+
+def _snapshot_figure(path, drum, snaps, res):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Circle
+
+    R = drum.spec.radius * drum.d
+    vmax = max(drum.omega * R, 0.5 * math.sqrt(G * drum.d) * drum.d)
+    n = max(1, len(snaps))
+    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.4), squeeze=False)
+    for ax, f in zip(axes[0], snaps):
+        X, V = f["X"], f["V"]
+        order = np.argsort(X[:, 2])
+        sp = np.sqrt((V * V).sum(1))[order]
+        pc = PatchCollection([Circle((x, y), r) for (x, y), r in
+                              zip(X[order, :2], drum.radii[order])], cmap="viridis")
+        pc.set_array(sp)
+        pc.set_clim(0, vmax)
+        ax.add_collection(pc)
+        ax.add_patch(Circle((0, 0), R, fill=False, lw=1.2, color="k"))
+        a = f["turned"]
+        ax.plot([0, R * math.cos(a)], [0, R * math.sin(a)], "k:", lw=0.6)
+        s = measure(X, V, drum.radii, R, drum.omega, drum.d)
+        if np.isfinite(s["slope"]):
+            xx = np.linspace(-R, R, 2)
+            ax.plot(xx, s["slope"] * xx + s["intercept"], "r-", lw=1)
+        ax.set_xlim(-1.05 * R, 1.05 * R)
+        ax.set_ylim(-1.05 * R, 1.05 * R)
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ang = "" if not np.isfinite(s["angle"]) else f", {s['angle']:.1f}°"
+        ax.set_title(f"rev {f['turned'] / (2 * math.pi):.2f}{ang}", fontsize=9)
+    fig.suptitle(f"{res['element']}, Fr = {res['froude']:.3g}, mu = {drum.spec.mu:g}: "
+                 f"{res['regime']}", fontsize=10)
+    fig.colorbar(pc, ax=list(axes[0]), shrink=0.8, label="speed (D/time)")
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)
+
+
+def _angle_figure(path, samples, res):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    for ph, c in (("warmup", "0.6"), ("measure", "C0")):
+        s = [x for x in samples if x["phase"] == ph]
+        ax.plot([x["revolutions"] for x in s], [x["angle"] for x in s], ".", ms=2, color=c,
+                label=ph)
+    m = res["angle"]["mean"]
+    if np.isfinite(m):
+        ax.axhline(m, color="C3", lw=1, label=f"mean {m:.1f}°")
+    ax.set_xlabel("revolutions")
+    ax.set_ylabel("surface angle (degrees)")
+    ax.set_title(f"Fr = {res['froude']:.3g}: {res['regime']}", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)

@@ -1,0 +1,210 @@
+"""``peclet drum`` (issue 22, item 4): the rotating drum's physics, determinism and bad input.
+
+- A grain glued to the wall (its rotation locked, wall friction 2, Fr = 1e-3) is carried at
+  omega R, to 1 %: it cannot roll and does not slip, so it moves as the wall at its contact.
+- A drum run (fill, settle, turn) gives the same state hash at 1 and 2 threads, and a run saved
+  mid-rotation and loaded goes on bit for bit as the uninterrupted one (wall pose included).
+- At Fr = 4 the bed centrifuges (a ring stuck to the wall), measured by the regime criteria.
+- Bad input to ``peclet drum``: one line naming the flag, exit code 2, nothing written.
+"""
+import math
+import os
+
+import numba
+import numpy as np
+import pytest
+
+from peclet.cli import main
+from peclet.dem import Simulation
+from peclet.packing.drum import Drum, DrumSpec, add_drum_wall, classify, measure, run_drum
+
+CAP = int(numba.config.NUMBA_NUM_THREADS)
+
+
+def _small(**kw):
+    base = dict(radius=4, length=3, ends="caps", fill=0.25, froude=0.1, mu=0.5, wall_mu=1.0,
+                revolutions=0.2, warmup=0.0, frames=0, seed=3)
+    base.update(kw)
+    return DrumSpec(**base).checked()
+
+
+def test_a_grain_glued_to_the_wall_moves_at_omega_r():
+    spec = _small(froude=1e-3, ribs=0, wall_mu=2.0, e=0.0)
+    sim = Simulation(1)
+    sim.set_gravity(0.0, -9.81, 0.0)
+    sim.set_material_params(0.0, 0.0, 0.5)
+    w = add_drum_wall(sim, spec, 1.0)
+    r, R = 0.5, spec.radius
+    sid = sim.add_sphere_shape(r)
+    sim.set_positions(np.array([[0.0, -(R - r) + 1e-3, 0.0]]))
+    sim.set_shape_ids(np.array([sid], np.int32))
+    m = 4.0 / 3.0 * math.pi * r ** 3
+    sim.set_inv_mass(np.array([1.0 / m]))
+    sim.set_inv_inertia(np.zeros((1, 3)))             # glued: it cannot roll
+    sim.set_domain([-R - 2, -R - 2, -2.0], [R + 2, R + 2, 2.0])
+    om, dt = spec.omega, 4e-3
+    for _ in range(50):
+        sim.step(dt)
+    sim.set_wall_velocity(w, angular=(0.0, 0.0, om))
+    for _ in range(100):                              # friction takes it along (~0.01 time)
+        sim.step(dt)
+    p0 = sim.get_positions()[0].copy()
+    a0 = math.atan2(p0[1], p0[0])
+    n = 400
+    for _ in range(n):
+        sim.step(dt)
+    p, v = sim.get_positions()[0], sim.get_velocities()[0]
+    rc = math.hypot(p[0], p[1])
+    assert rc == pytest.approx(R - r, abs=0.01)        # still on the wall
+    # it does not slip and cannot roll: every point of it, the contact point too, moves as
+    # the wall there, at omega R (to 1 %), straight along the wall
+    assert float(np.linalg.norm(v)) == pytest.approx(om * R, rel=0.01)
+    assert abs(float(np.dot(v[:2], p[:2]))) / rc < 1e-3 * om * R
+    # so it goes round the axis at omega R / (R - r): the angle it turned, to 1 %
+    turned = math.atan2(p[1], p[0]) - a0
+    assert turned == pytest.approx(om * R / (R - r) * n * dt, rel=0.01)
+
+
+def _run(spec, steps, threads, save_at=None, path=None):
+    numba.set_num_threads(threads)
+    try:
+        d = Drum(spec)
+        d.build(settle_max=300)
+        d.turn(d.omega)
+        if save_at is None:
+            d.step(steps)
+            return d.sim
+        d.step(save_at)
+        d.sim.save(path)
+        sim = Simulation.load(path)
+        for _ in range(steps - save_at):
+            sim.step(d.dt)
+        return sim
+    finally:
+        numba.set_num_threads(CAP)
+
+
+@pytest.mark.skipif(CAP < 2, reason="needs 2 numba threads")
+def test_a_drum_run_is_the_same_at_one_and_two_threads():
+    spec = _small()
+    a = _run(spec, 300, 1)
+    b = _run(spec, 300, 2)
+    assert a.num_particles() > 20
+    assert a.state_hash() == b.state_hash()
+    ta, qa = a.get_wall_transform(0)
+    tb, qb = b.get_wall_transform(0)
+    assert np.array_equal(qa, qb) and np.array_equal(ta, tb)
+
+
+def test_a_drum_saved_and_resumed_mid_rotation_equals_the_uninterrupted_run(tmp_path):
+    spec = _small()
+    ref = _run(spec, 300, 1)
+    res = _run(spec, 300, 1, save_at=137, path=str(tmp_path / "mid.npz"))
+    assert ref.state_hash() == res.state_hash()
+    assert np.array_equal(ref.get_wall_transform(0)[1], res.get_wall_transform(0)[1])
+    # the drum did turn between the save and the end
+    q = ref.get_wall_transform(0)[1]
+    assert 2.0 * math.atan2(q[2], q[3]) == pytest.approx(spec.omega * 300 * Drum(spec).dt,
+                                                        rel=1e-9)
+
+
+def test_at_froude_four_the_bed_centrifuges(tmp_path):
+    spec = _small(radius=5, fill=0.35, froude=4.0, revolutions=0.5, warmup=1.0, frames=3,
+                  snapshots=2)
+    res = run_drum(spec, out=str(tmp_path / "run"), progress=False)
+    assert res["regime"] == "centrifuging", res["criteria"]
+    assert "centrifuging" in res["mellmann"]
+    names = set(os.listdir(tmp_path / "run"))
+    assert {"results.json", "snapshots.png", "angle.png", "drum.pvd", "frames"} <= names
+    assert len(os.listdir(tmp_path / "run" / "frames")) == 3
+
+
+def test_the_regime_criteria_on_made_up_samples():
+    base = dict(coverage=0.5, corotating=0.5, airborne=0.0, flowing=0.3, s_shape=0.01,
+                high=0.0)
+    assert classify([dict(base)] * 4)[0] == "rolling"
+    assert classify([dict(base, s_shape=0.08)] * 4)[0] == "cascading"
+    assert classify([dict(base, flowing=0.0)] * 2 + [dict(base)] * 2)[0] == "slumping"
+    assert classify([dict(base, airborne=0.05)] * 4)[0] == "cataracting"
+    assert classify([dict(base, high=0.3, corotating=0.97)] * 4)[0] == "centrifuging"
+    assert classify([dict(base, flowing=0.0, corotating=1.0)] * 4)[0] == "slumping"
+
+
+def test_the_surface_of_a_tilted_bed_gives_its_angle():
+    # grains filling a 30-degree-tilted half of a drum of R = 10, in a 3 D slice
+    rng = np.random.default_rng(0)
+    P = rng.uniform(-10, 10, size=(40000, 3))
+    P[:, 2] = rng.uniform(0, 3, len(P))
+    t = math.tan(math.radians(30.0))
+    keep = (np.hypot(P[:, 0], P[:, 1]) < 9.5) & (P[:, 1] < t * P[:, 0] - 1.0)
+    P = P[keep][:3000]
+    s = measure(P, np.zeros_like(P), np.full(len(P), 0.02), 10.0, 0.1)
+    assert s["angle"] == pytest.approx(30.0, abs=1.5)
+
+
+CASES = [
+    (["--radius", "1"], "--radius", "[3, 200]"),
+    (["--radius", "abc"], "--radius", "a number"),
+    (["--length", "0"], "--length", "[1, 200]"),
+    (["--fill", "0"], "--fill", "(0, 0.8]"),
+    (["--fill", "0.9"], "--fill", "(0, 0.8]"),
+    (["--froude", "0"], "--froude", "(0, 100]"),
+    (["--froude", "nan"], "--froude", "finite"),
+    (["--froude", "1000"], "--froude", "(0, 100]"),
+    (["--mu", "-1"], "--mu", "[0, 10]"),
+    (["--restitution", "2"], "--restitution", "[0, 1]"),
+    (["--wall-restitution", "-0.1"], "--wall-restitution", "[0, 1]"),
+    (["--wall-mu", "nan"], "--wall-mu", "finite"),
+    (["--grain-mm", "0", "--rpm", "10"], "--grain-mm", "(0, 10000]"),
+    (["--rpm", "1e9"], "--rpm", "(0, 100000]"),
+    (["--seed", "1.5"], "--seed", "an integer"),
+    (["--ends", "open"], "--ends", "caps"),
+    (["--polydispersity", "0.5"], "--polydispersity", "[0, 0.5)"),
+    (["--revolutions", "0"], "--revolutions", "(0, 100]"),
+    (["--ribs", "-1"], "--ribs", "[0, 720]"),
+    (["--threads", "0"], "--threads", "NUMBA_NUM_THREADS"),
+    (["--element", "no_such_thing"], "--element", ""),
+]
+
+
+@pytest.mark.parametrize("argv,flag,phrase", CASES, ids=[" ".join(c[0]) for c in CASES])
+def test_bad_input_is_one_line_naming_the_flag(tmp_path, capsys, argv, flag, phrase):
+    out = tmp_path / "run"
+    args = ["drum", "--out", str(out), "--quiet"]
+    if "--froude" not in argv and "--rpm" not in argv:
+        args += ["--froude", "0.01"]
+    rc = main(args + argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert len(err) == 1, err
+    assert err[0].startswith(f"peclet drum: error: {flag} must"), err
+    assert phrase in err[0], err
+    assert not out.exists()
+
+
+def test_rpm_and_froude_together_or_neither_are_refused(tmp_path, capsys):
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as ex:
+        main(["drum", "--out", str(out), "--froude", "0.1", "--rpm", "10"])
+    assert ex.value.code == 2
+    assert main(["drum", "--out", str(out)]) == 2
+    assert "--froude must be given, or --rpm" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_drum_shorter_than_a_grain_is_refused_before_work(tmp_path, capsys):
+    out = tmp_path / "run"
+    rc = main(["drum", "--out", str(out), "--froude", "0.01", "--length", "1",
+               "--polydispersity", "0.4", "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--length must be at least a grain's" in err, err
+    assert not out.exists()
+
+
+def test_a_fill_the_drum_cannot_hold_is_refused_before_work(tmp_path, capsys):
+    out = tmp_path / "run"
+    rc = main(["drum", "--out", str(out), "--froude", "0.01", "--fill", "0.8",
+               "--polydispersity", "0.4", "--radius", "3", "--length", "2", "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--fill must be" in err, err
+    assert not out.exists()
