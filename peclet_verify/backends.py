@@ -29,8 +29,9 @@ from peclet.core.validation import PecletArgumentError, check_float
 
 from . import wire
 
-__all__ = ["ReferenceBackend", "SubprocessBackend", "load_backend", "parse_backend_spec", "serve",
-           "check_backend", "backend_name", "peclet_geom_child_command", "DEFAULT_TIMEOUT"]
+__all__ = ["ReferenceBackend", "SubprocessBackend", "ChildProcess", "load_backend",
+           "parse_backend_spec", "serve", "check_backend", "backend_name",
+           "peclet_geom_child_command", "DEFAULT_TIMEOUT"]
 
 serve = wire.serve
 
@@ -107,20 +108,27 @@ def load_backend(spec: str):
     parsed = parse_backend_spec(spec)
     if parsed is None:
         return ReferenceBackend()
+    return check_backend(_call_factory(spec, parsed, "backend"))
+
+
+def _call_factory(spec, parsed, label):
+    """What the factory of ``spec`` (``parsed``: its ``(module, factory)``) returns. Every
+    failure (a module that does not import, no such factory, a factory that raises) is a
+    ``ValueError`` starting ``"{label} {spec!r}: "``."""
     mod_name, attr = parsed
     try:
         mod = importlib.import_module(mod_name)
     except ImportError as exc:
-        raise ValueError(f"backend {spec!r}: cannot import module {mod_name!r}: {exc}") from exc
+        raise ValueError(f"{label} {spec!r}: cannot import module {mod_name!r}: {exc}") \
+            from exc
     factory = getattr(mod, attr, None)
     if not callable(factory):
-        raise ValueError(f"backend {spec!r}: {mod_name} has no callable {attr!r}")
+        raise ValueError(f"{label} {spec!r}: {mod_name} has no callable {attr!r}")
     try:
-        backend = factory()
+        return factory()
     except Exception as exc:  # a broken factory is a usage error for the one who named it
-        raise ValueError(f"backend {spec!r}: {attr}() raised {type(exc).__name__}: {exc}") \
+        raise ValueError(f"{label} {spec!r}: {attr}() raised {type(exc).__name__}: {exc}") \
             from exc
-    return check_backend(backend)
 
 
 class _TimedPipe:
@@ -160,17 +168,19 @@ class _TimedPipe:
         pass  # unbuffered (bufsize=0): every write went straight to the pipe
 
 
-class SubprocessBackend:
-    """A backend served by a child process (``cmd``), which runs :func:`serve` on its engine.
+class ChildProcess:
+    """A child process (``cmd``) answering framed numpy messages of :mod:`peclet_verify.wire`
+    on its pipes: the start-up, each call with its timeout and error messages, kill and close.
 
-    The child can live in another interpreter or virtual environment: it needs numpy and
-    :mod:`peclet_verify.wire` only. ``evaluate_grad`` / ``bound`` exist on this object iff the
-    child's engine offers them. Use as a context manager or call :meth:`close`.
-
-    ``timeout`` (seconds, default :data:`DEFAULT_TIMEOUT`) bounds the wait for each answer,
-    the child's start-up included: a child that does not answer in time is killed and the
-    call raises :class:`TimeoutError` naming the backend (a certificate then fails with it).
+    ``cmd`` a non-empty list of program arguments; ``env`` the child's environment (None: this
+    process's), ``cwd``, ``timeout`` (seconds per answer, default :data:`DEFAULT_TIMEOUT`).
+    A child that does not answer in time is killed and the call raises :class:`TimeoutError`
+    naming the backend (``name``, default the command's last argument). Use as a context
+    manager or call :meth:`close`.
     """
+
+    #: Named in the message of a call that timed out.
+    timeout_label = "timeout"
 
     def __init__(self, cmd, name=None, env=None, cwd=None, timeout=None):
         if isinstance(cmd, (str, bytes)) or not isinstance(cmd, (list, tuple)) or not cmd \
@@ -179,27 +189,30 @@ class SubprocessBackend:
                                       cmd)
         self.timeout = DEFAULT_TIMEOUT if timeout is None else check_float(
             "timeout", timeout, 0.0, math.inf, lo_open=True)
-        if name is not None and not isinstance(name, str):
-            raise PecletArgumentError("name", "a string or None", name)
+        self._check_name(name)
         self.name = name or os.path.basename(str(cmd[-1]))
         self._proc = None
         try:
             self._proc = subprocess.Popen([os.fspath(c) for c in cmd], stdin=subprocess.PIPE,
-                                          stdout=subprocess.PIPE, stderr=None, env=env,
-                                          cwd=cwd, bufsize=0)
+                                          stdout=subprocess.PIPE, stderr=None,
+                                          env=self._child_env(env), cwd=cwd, bufsize=0)
         except OSError as exc:
             raise PecletArgumentError("cmd", "a command that can be started", cmd,
                                       str(exc)) from None
-        self._methods = set(str(m) for m in self._call("methods")[0].reshape(-1) if str(m))
-        if "evaluate" not in self._methods:
-            self.close()
-            raise ValueError(f"child {cmd!r} serves no evaluate; it offers {self._methods}")
 
-    def _call(self, method, *args):
+    def _check_name(self, name):
+        """Hook: raise for a ``name`` this kind of child refuses (any is accepted here)."""
+
+    def _child_env(self, env):
+        """The environment the child starts with, from the ``env`` argument."""
+        return env
+
+    def call(self, method, *args):
+        """The child's answer (a list of arrays) to ``method`` with ``args``."""
         if self._proc is None:
             raise RuntimeError(f"backend {self.name!r} is closed")
         what = (f"backend {self.name!r} did not answer {method!r} within {self.timeout:g} s "
-                f"(SubprocessBackend timeout); the child was killed")
+                f"({self.timeout_label}); the child was killed")
         pipe = _TimedPipe(self._proc, time.monotonic() + self.timeout, what)
         try:
             wire.write_message(pipe, [np.array(method), *args])
@@ -223,26 +236,6 @@ class SubprocessBackend:
             for f in (proc.stdin, proc.stdout):
                 f.close()
 
-    def __getattr__(self, item):
-        # evaluate_grad / bound appear only when the child offers them (hasattr is truthful)
-        if item in ("evaluate_grad", "bound") and item in self.__dict__.get("_methods", ()):
-            return lambda *a: self._dispatch(item, *a)
-        raise AttributeError(item)
-
-    def _dispatch(self, method, ni, nr, root, points=None):
-        args = [np.asarray(ni, np.int32), np.asarray(nr, np.float64), np.array(int(root))]
-        if points is not None:
-            args.append(np.ascontiguousarray(points, dtype=np.float64))
-        out = self._call(method, *args)
-        if method == "evaluate":
-            return out[0]
-        if method == "bound":
-            return np.asarray(out[0], float), float(out[1]), bool(out[2])
-        return tuple(out)
-
-    def evaluate(self, node_ints, node_reals, root, points):
-        return self._dispatch("evaluate", node_ints, node_reals, root, points)
-
     def close(self):
         """Ask the child to exit (it has ``CLOSE_GRACE`` seconds), then kill it."""
         if self._proc is not None:
@@ -252,9 +245,8 @@ class SubprocessBackend:
                 wire.read_message(pipe)
             except Exception:  # the child may already be gone or hung; closing must not raise
                 pass
-            proc = self._proc
             try:
-                proc.wait(timeout=CLOSE_GRACE)
+                self._proc.wait(timeout=CLOSE_GRACE)
             except subprocess.TimeoutExpired:
                 pass
             self._kill()
@@ -268,6 +260,52 @@ class SubprocessBackend:
     def __del__(self):
         if getattr(self, "_proc", None) is not None:
             self.close()
+
+
+class SubprocessBackend(ChildProcess):
+    """A backend served by a child process (``cmd``), which runs :func:`serve` on its engine.
+
+    The child can live in another interpreter or virtual environment: it needs numpy and
+    :mod:`peclet_verify.wire` only. ``evaluate_grad`` / ``bound`` exist on this object iff the
+    child's engine offers them. Use as a context manager or call :meth:`close`.
+
+    ``timeout`` (seconds, default :data:`DEFAULT_TIMEOUT`) bounds the wait for each answer,
+    the child's start-up included: a child that does not answer in time is killed and the
+    call raises :class:`TimeoutError` naming the backend (a certificate then fails with it).
+    """
+
+    timeout_label = "SubprocessBackend timeout"
+
+    def __init__(self, cmd, name=None, env=None, cwd=None, timeout=None):
+        super().__init__(cmd, name=name, env=env, cwd=cwd, timeout=timeout)
+        self._methods = set(str(m) for m in self.call("methods")[0].reshape(-1) if str(m))
+        if "evaluate" not in self._methods:
+            self.close()
+            raise ValueError(f"child {cmd!r} serves no evaluate; it offers {self._methods}")
+
+    def _check_name(self, name):
+        if name is not None and not isinstance(name, str):
+            raise PecletArgumentError("name", "a string or None", name)
+
+    def __getattr__(self, item):
+        # evaluate_grad / bound appear only when the child offers them (hasattr is truthful)
+        if item in ("evaluate_grad", "bound") and item in self.__dict__.get("_methods", ()):
+            return lambda *a: self._dispatch(item, *a)
+        raise AttributeError(item)
+
+    def _dispatch(self, method, ni, nr, root, points=None):
+        args = [np.asarray(ni, np.int32), np.asarray(nr, np.float64), np.array(int(root))]
+        if points is not None:
+            args.append(np.ascontiguousarray(points, dtype=np.float64))
+        out = self.call(method, *args)
+        if method == "evaluate":
+            return out[0]
+        if method == "bound":
+            return np.asarray(out[0], float), float(out[1]), bool(out[2])
+        return tuple(out)
+
+    def evaluate(self, node_ints, node_reals, root, points):
+        return self._dispatch("evaluate", node_ints, node_reals, root, points)
 
 
 def reference_child_command(python=None):

@@ -11,6 +11,7 @@ Each certificate searches the active profile's examples (capped: every example i
 the engine) and prints a shrunk counterexample as a runnable page-API snippet. Names are in
 :data:`peclet_verify.report.DEM_CERTIFICATES`.
 """
+
 import pytest
 
 from . import mechanics as M
@@ -51,14 +52,34 @@ def describe_case(x):
     return f"{_IMPORT}{x!r}\n# in the page's API:\n{x.scenario().snippet()}"
 
 
-@pytest.mark.peclet_certify
-def test_dem_determinism_one_thread(peclet_certificate, peclet_dem_backend):
-    """Two runs of a pour at one thread: the same bytes."""
-    be = peclet_dem_backend
-    peclet_certificate(_tagged(P.search(
-        lambda p: M.determinism_one_thread(be, p), M.pours(),
-        name="determinism at one thread (DEM backend)", settings=_few("determinism"),
-        describe=describe_pour), be))
+def _search(be, prop, strategy, name, kind, describe=describe_case):
+    """:func:`peclet_verify.properties.search` of ``prop(be, example)`` over ``strategy``, at
+    most ``CAPS[kind]`` examples."""
+    return P.search(lambda x: prop(be, x), strategy, name=name, settings=_few(kind),
+                    describe=describe)
+
+
+def _certify(peclet_certificate, be, prop, strategy, name, kind, describe=describe_case):
+    """Record the certificate of :func:`_search`, tagged with the backend's name."""
+    peclet_certificate(_tagged(_search(be, prop, strategy, name, kind, describe), be))
+
+
+def _dem_certificate(test_name, doc, prop, strategy, name, kind, describe=describe_case):
+    """A certificate test named ``test_name`` (docstring ``doc``) that records the
+    certificate of ``prop(backend, example)`` over ``strategy()`` (one test function serves
+    every certificate that is a plain property search)."""
+    @pytest.mark.peclet_certify
+    def test(peclet_certificate, peclet_dem_backend):
+        _certify(peclet_certificate, peclet_dem_backend, prop, strategy(), name, kind, describe)
+    test.__name__ = test.__qualname__ = test_name
+    test.__doc__ = doc
+    return test
+
+
+test_dem_determinism_one_thread = _dem_certificate(
+    "test_dem_determinism_one_thread", "Two runs of a pour at one thread: the same bytes.",
+    M.determinism_one_thread, M.pours, "determinism at one thread (DEM backend)",
+    "determinism", describe_pour)
 
 
 @pytest.mark.peclet_certify
@@ -72,8 +93,8 @@ def test_dem_determinism_across_threads(peclet_certificate, peclet_dem_backend):
                                f"{getattr(be, 'name', be)!r} declares thread_determinism = "
                                "False", M.NOT_CLAIMED)
     else:
-        res = P.search(lambda p: M.determinism_across_threads(be, p), M.pours(), name=name,
-                       settings=_few("determinism"), describe=describe_pour)
+        res = _search(be, M.determinism_across_threads, M.pours(), name, "determinism",
+                      describe_pour)
         res.name = name   # also when "unavailable" (a property's own result)
     peclet_certificate(_tagged(res, be))
     if res.status == M.NOT_CLAIMED:
@@ -85,45 +106,30 @@ def test_dem_buffer_growth(peclet_certificate, peclet_dem_backend):
     """A pour under capacity hints that force growth: the trajectory of ample hints, no
     contact lost, no crash."""
     from hypothesis import strategies as st
-    be = peclet_dem_backend
-    peclet_certificate(_tagged(P.search(
-        lambda a: M.buffer_growth(be, a[0], a[1]), st.tuples(M.pours(), M.capacity_hints()),
-        name="buffer growth (DEM backend)", settings=_few("buffer"),
-        describe=describe_hints), be))
+    _certify(peclet_certificate, peclet_dem_backend, lambda be, a: M.buffer_growth(be, *a),
+             st.tuples(M.pours(), M.capacity_hints()), "buffer growth (DEM backend)", "buffer",
+             describe_hints)
 
 
-@pytest.mark.peclet_certify
-def test_dem_binary_restitution(peclet_certificate, peclet_dem_backend):
-    """Two spheres head-on: separation / approach speed = e; momentum conserved."""
-    be = peclet_dem_backend
-    peclet_certificate(_tagged(P.search(
-        lambda c: M.binary_restitution(be, c), M.collisions(), name="binary restitution",
-        settings=_few("mechanics"), describe=describe_case), be))
+test_dem_binary_restitution = _dem_certificate(
+    "test_dem_binary_restitution",
+    "Two spheres head-on: separation / approach speed = e; momentum conserved.",
+    M.binary_restitution, M.collisions, "binary restitution", "mechanics")
 
 
-@pytest.mark.peclet_certify
-def test_dem_slide_to_roll(peclet_certificate, peclet_dem_backend):
-    """A solid sphere launched sliding: rolls at v = 5/7 v0."""
-    be = peclet_dem_backend
-    peclet_certificate(_tagged(P.search(
-        lambda r: M.slide_to_roll(be, r), M.rolls(), name="slide to roll",
-        settings=_few("mechanics"), describe=describe_case), be))
+test_dem_slide_to_roll = _dem_certificate(
+    "test_dem_slide_to_roll", "A solid sphere launched sliding: rolls at v = 5/7 v0.",
+    M.slide_to_roll, M.rolls, "slide to roll", "mechanics")
 
 
-@pytest.mark.peclet_certify
-def test_dem_incline_stick_slip(peclet_certificate, peclet_dem_backend):
-    """A cube on an incline: sticks for tan(theta) < mu, slides at g (sin - mu cos) above."""
-    be = peclet_dem_backend
-    peclet_certificate(_tagged(P.search(
-        lambda i: M.incline(be, i), M.inclines(), name="incline stick/slip",
-        settings=_few("mechanics"), describe=describe_case), be))
+test_dem_incline_stick_slip = _dem_certificate(
+    "test_dem_incline_stick_slip",
+    "A cube on an incline: sticks for tan(theta) < mu, slides at g (sin - mu cos) above.",
+    M.incline, M.inclines, "incline stick/slip", "mechanics")
 
 
-@pytest.mark.peclet_certify
-def test_dem_free_rigid_body(peclet_certificate, peclet_dem_backend):
-    """A torque-free asymmetric body: energy and angular momentum conserved, the
-    intermediate-axis flip period of Euler's equations."""
-    be = peclet_dem_backend
-    peclet_certificate(_tagged(P.search(
-        lambda r: M.free_rigid_body(be, r), M.rotors(), name="free rigid body",
-        settings=_few("rotor"), describe=describe_case), be))
+test_dem_free_rigid_body = _dem_certificate(
+    "test_dem_free_rigid_body",
+    "A torque-free asymmetric body: energy and angular momentum conserved, the "
+    "intermediate-axis flip period of Euler's equations.",
+    M.free_rigid_body, M.rotors, "free rigid body", "rotor")

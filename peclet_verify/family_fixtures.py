@@ -30,16 +30,21 @@ def check_family_options(config):
             parsed = check_factory_spec(spec, opt)
         except PecletArgumentError as exc:
             raise ValueError(str(exc)) from None
-        if parsed is None:
-            continue
-        try:
-            found = importlib.util.find_spec(parsed[0])
-        except (ImportError, ValueError) as exc:
-            found, why = None, f"{type(exc).__name__}: {exc}"
-        else:
-            why = "no such module"
-        if found is None:
-            raise ValueError(f"{opt} {spec!r}: cannot import module {parsed[0]!r} ({why})")
+        if parsed is not None:
+            check_module_found(opt, spec, parsed[0])
+
+
+def check_module_found(option, spec, module):
+    """Raise ``ValueError`` (one line naming ``option`` and ``spec``) unless ``module`` can be
+    found; nothing is imported."""
+    try:
+        found = importlib.util.find_spec(module)
+    except (ImportError, ValueError) as exc:
+        found, why = None, f"{type(exc).__name__}: {exc}"
+    else:
+        why = "no such module"
+    if found is None:
+        raise ValueError(f"{option} {spec!r}: cannot import module {module!r} ({why})")
 
 
 def _make(config, option, hook_name, load, default, check):
@@ -57,7 +62,12 @@ def _make(config, option, hook_name, load, default, check):
                     returncode=4)
 
 
-def _closing(backend):
+def _session_backend(config, family, load, default, check):
+    """The ``family`` ("dem", "mass") backend :func:`_make` makes from its option or hook,
+    closed (if it has ``close``) when the session ends."""
+    backend = _make(config, f"--peclet-{family}-backend", f"pytest_peclet_make_{family}_backend",
+                    load, default, check)
+    yield backend
     close = getattr(backend, "close", None)
     if callable(close):
         close()
@@ -66,21 +76,17 @@ def _closing(backend):
 @pytest.fixture(scope="session")
 def peclet_dem_backend(pytestconfig):
     """The DEM engine under certification (see the module docstring)."""
-    from .dem_backends import PecletDemBackend, check_dem_backend, load_dem_backend
-    backend = _make(pytestconfig, "--peclet-dem-backend", "pytest_peclet_make_dem_backend",
-                    load_dem_backend, PecletDemBackend, check_dem_backend)
-    yield backend
-    _closing(backend)
+    from . import dem_backends as D
+    yield from _session_backend(pytestconfig, "dem", D.load_dem_backend, D.PecletDemBackend,
+                                D.check_dem_backend)
 
 
 @pytest.fixture(scope="session")
 def peclet_mass_backend(pytestconfig):
     """The mass-property engine under certification (see the module docstring)."""
-    from .mass_backends import PecletMassBackend, check_mass_backend, load_mass_backend
-    backend = _make(pytestconfig, "--peclet-mass-backend", "pytest_peclet_make_mass_backend",
-                    load_mass_backend, PecletMassBackend, check_mass_backend)
-    yield backend
-    _closing(backend)
+    from . import mass_backends as M
+    yield from _session_backend(pytestconfig, "mass", M.load_mass_backend, M.PecletMassBackend,
+                                M.check_mass_backend)
 
 
 def backend_label(config, option, hook_name):

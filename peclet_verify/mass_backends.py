@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from typing import Optional, Protocol, Sequence, runtime_checkable
+from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -153,10 +153,11 @@ def mass_child_command(python=None):
 
 
 # ---------------------------------------------------------------------------- certificate
-def closed_form_world(recipe):
-    """(volume, com (3,), inertia (3, 3)) of a one-leaf recipe at unit density in the root's
-    parent frame (the leaf's transform applied: volume s^3, inertia s^5 R I R^T), from
-    :func:`peclet.core.geom.leaves.closed_form_mass_properties`; None without a closed form."""
+def closed_form_leaf(recipe):
+    """``(exact, s, R, com)`` of a one-leaf recipe: the leaf table's closed form ``exact``
+    (:func:`peclet.core.geom.leaves.closed_form_mass_properties`, at unit density in the leaf's
+    frame), the leaf's scale ``s`` and rotation matrix ``R``, and its centre of mass in the
+    root's parent frame; None without a closed form."""
     from peclet.core.geom import quat_to_matrix
     from peclet.core.geom.leaves import closed_form_mass_properties
     node = recipe.root
@@ -169,6 +170,17 @@ def closed_form_world(recipe):
     s = float(tr.scale)
     R = quat_to_matrix(np.asarray(tr.rotation, float))
     com = np.asarray(tr.translation, float) + s * R @ np.asarray(exact.com, float)
+    return exact, s, R, com
+
+
+def closed_form_world(recipe):
+    """(volume, com (3,), inertia (3, 3)) of a one-leaf recipe at unit density in the root's
+    parent frame (the leaf's transform applied: volume s^3, inertia s^5 R I R^T), from
+    :func:`closed_form_leaf`; None without a closed form."""
+    leaf = closed_form_leaf(recipe)
+    if leaf is None:
+        return None
+    exact, s, R, com = leaf
     inertia = s ** 5 * R @ np.asarray(exact.inertia, float) @ R.T
     return exact.volume * s ** 3, com, inertia
 

@@ -34,13 +34,13 @@ engine, numpy and Hypothesis load when ``--peclet-certify`` is given.
 """
 from __future__ import annotations
 
-import importlib.util
 import os
 
 import pytest
 
 # the DEM and mass-property families' fixtures (pytest and stdlib only at import)
-from .family_fixtures import check_family_options, peclet_dem_backend, peclet_mass_backend  # noqa: F401,E501
+from .family_fixtures import (check_family_options, check_module_found,  # noqa: F401
+                              peclet_dem_backend, peclet_mass_backend)
 
 PROFILES = ("dev", "ci", "nightly", "smoke")  # = peclet_verify.profiles.PROFILES (a test checks)
 USER_PROPERTY = "peclet_certificate"
@@ -156,15 +156,7 @@ def _check_backend_spec(spec):
     except ValueError as exc:
         raise ValueError(f"--peclet-backend: {exc}") from None
     if parsed is not None:
-        try:
-            found = importlib.util.find_spec(parsed[0])
-        except (ImportError, ValueError) as exc:
-            found, why = None, f"{type(exc).__name__}: {exc}"
-        else:
-            why = "no such module"
-        if found is None:
-            raise ValueError(f"--peclet-backend {spec!r}: cannot import module "
-                             f"{parsed[0]!r} ({why})")
+        check_module_found("--peclet-backend", spec, parsed[0])
 
 
 def pytest_configure(config):

@@ -432,18 +432,11 @@ def closed_form(recipe: TreeRecipe):
     unit density, moved by the leaf's transform (rotation, scale s: volume s^3, moments s^5),
     from the leaf table's closed forms
     (:func:`peclet.core.geom.leaves.closed_form_mass_properties`); None if it has none."""
-    from peclet.core.geom import quat_to_matrix
-    from peclet.core.geom.leaves import closed_form_mass_properties
-    node = recipe.root
-    if not hasattr(node, "kind") or recipe.reframes:
+    from .mass_backends import closed_form_leaf
+    leaf = closed_form_leaf(recipe)
+    if leaf is None:
         return None
-    exact = closed_form_mass_properties(node.kind, list(node.params))
-    if exact is None:
-        return None
-    tr = node.transform
-    s = float(tr.scale)
-    rot = quat_to_matrix(np.asarray(tr.rotation, float))
-    com = np.asarray(tr.translation, float) + s * rot @ np.asarray(exact.com, float)
+    exact, s, _, com = leaf
     principal = np.sort(np.linalg.eigvalsh(np.asarray(exact.inertia, float))) * s ** 5
     return exact.volume * s ** 3, com, principal
 
