@@ -99,12 +99,6 @@ class WallMotion:
         """Whether any wall has a non-zero velocity."""
         return bool(np.any(self.vel != 0.0) or np.any(self.omega != 0.0))
 
-    def placed(self):
-        """Whether any wall is away from the identity pose or moving."""
-        ident = np.all(self.pos == 0.0) and np.all(self.quat[:, :3] == 0.0) \
-            and np.all(self.quat[:, 3] == 1.0)
-        return self.moving() or not ident
-
     def rotations(self):
         """(n, 3, 3) tree -> world rotations."""
         return quats_to_matrices(self.quat) if self.n else np.zeros((0, 3, 3))

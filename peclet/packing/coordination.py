@@ -141,7 +141,7 @@ def engine_coordination(pack: Pack, walls=(), gap=1e-3, periodic=True, sphere_ra
     # one row per touching (a, b) pair: the manifold may hold several points of one pair
     key = np.unique(np.stack([a, b_], axis=1), axis=0) if len(a) else np.zeros((0, 2), int)
     min_gap = float(gaps.min()) if len(gaps) else math.inf
-    pairs = 0
+    inner = cross = 0
     for i, j in key.tolist():
         if j < 0:                       # a wall, -1 - index
             if orig[i]:
@@ -151,11 +151,10 @@ def engine_coordination(pack: Pack, walls=(), gap=1e-3, periodic=True, sphere_ra
             elem[owner[i]] += 1
         if orig[j]:
             elem[owner[j]] += 1
-        if orig[i] or orig[j]:
-            pairs += 1 if (orig[i] and orig[j]) else 0
+        inner += orig[i] and orig[j]
+        cross += orig[i] != orig[j]
     # a pair across a periodic face is seen once from each side's original: count it once
-    cross = sum(1 for i, j in key.tolist() if j >= 0 and orig[i] != orig[j])
-    pairs += cross // 2
+    pairs = inner + cross // 2
     total = elem + wall
     return dict(elem=elem, wall=wall, total=total, z_elem=float(elem.mean()),
                 z_total=float(total.mean()), rattlers=int((total < 1).sum()),
