@@ -212,12 +212,12 @@ class Simulation:
 
     def get_wall_transform(self, wall):
         """(translation (3,), quaternion (4,) x y z w) of ``wall``, copies."""
-        i = self._wallmo._index(wall)
+        i = self._wallmo.index(wall)
         return self._wallmo.pos[i].copy(), self._wallmo.quat[i].copy()
 
     def get_wall_velocity(self, wall):
         """(linear (3,), angular (3,), center (3,)) of ``wall``, copies."""
-        i = self._wallmo._index(wall)
+        i = self._wallmo.index(wall)
         m = self._wallmo
         return m.vel[i].copy(), m.omega[i].copy(), m.center[i].copy()
 
@@ -254,7 +254,7 @@ class Simulation:
     def set_wall_material_id(self, wall, material_id):
         """Give ``wall`` the material id ``material_id`` in [0, 1023] (-1: back to the wall's own
         restitution and friction from :meth:`add_analytic_wall`)."""
-        i = self._wallmo._index(wall)
+        i = self._wallmo.index(wall)
         self._materials.wall_ids[i] = check_int("material_id", material_id, -1,
                                                 MAX_MATERIAL_ID)
 

@@ -67,7 +67,8 @@ class WallMotion:
         for k in ("vel", "omega", "center"):
             setattr(self, k, np.vstack([getattr(self, k), np.zeros((1, 3))]))
 
-    def _index(self, wall):
+    def index(self, wall):
+        """``wall`` checked as a registered wall index."""
         if self.n == 0:
             raise PecletArgumentError("wall", "the index of a wall added with add_analytic_wall "
                                       "(none is registered)", wall)
@@ -76,7 +77,7 @@ class WallMotion:
     def set_transform(self, wall, translation, quaternion):
         """Pose of ``wall``: ``translation`` (3 finite numbers) and ``quaternion`` (x, y, z, w),
         unit to within :data:`UNIT_TOL` (then normalised)."""
-        i = self._index(wall)
+        i = self.index(wall)
         t = check_array("translation", translation, (3,))
         q = check_array("quaternion", quaternion, (4,))
         nq = float(np.sqrt((q * q).sum()))
@@ -89,7 +90,7 @@ class WallMotion:
     def set_velocity(self, wall, linear, angular, center=(0.0, 0.0, 0.0)):
         """Rigid velocity of ``wall``: ``linear`` (length/time), ``angular`` (rad/time, a
         world-frame vector) about the world point ``center``; each 3 finite numbers."""
-        i = self._index(wall)
+        i = self.index(wall)
         v = check_array("linear", linear, (3,))
         w = check_array("angular", angular, (3,))
         c = check_array("center", center, (3,))
