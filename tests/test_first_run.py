@@ -84,3 +84,11 @@ def test_bad_initial_is_named(kw, name):
 
     with pytest.raises(PecletArgumentError, match=f"^{name} must"):
         Progress(**kw)
+
+
+def test_ms_per_step_leaves_out_the_first_step():
+    from peclet.packing.progress import ms_per_step
+
+    assert ms_per_step(90.0, 85.0, 1001) == pytest.approx(5.0)     # 5 s over 1000 steps
+    assert ms_per_step(2.0, 2.0, 1) == pytest.approx(2000.0)       # one step: its own time
+    assert ms_per_step(0.0, 0.0, 0) == 0.0

@@ -34,7 +34,7 @@ from .elements import ELEMENTS, Element, parse_element
 from .freeze import Pack
 from .material import Material, as_material
 from .pipeline_checks import set_threads
-from .progress import Progress
+from .progress import Progress, ms_per_step
 from .protocols import G, Body, RunState, drive, insert_bodies, new_simulation, parse_protocol
 
 __all__ = ["pack", "resume", "PackResult", "ElementModel", "element_model", "ITERATIONS",
@@ -304,9 +304,7 @@ class PackResult:
     def ms_per_step(self):
         """Milliseconds per step after the first (whose compilation on a cold cache is not a
         stepping rate); the whole run's average when it took one step."""
-        if self.steps > 1:
-            return 1e3 * (self.seconds - self.first_step_seconds) / (self.steps - 1)
-        return 1e3 * self.seconds / max(self.steps, 1)
+        return ms_per_step(self.seconds, self.first_step_seconds, self.steps)
 
     @property
     def landed(self):

@@ -24,6 +24,7 @@ from .elements import home_transform
 from .freeze import Pack, save_pack
 from .pipeline_checks import OUTPUTS, check_run, clear_outputs, set_threads
 from .pour import pour
+from .progress import ms_per_step
 
 __all__ = ["run", "check_run", "PAGE", "results_table", "set_threads", "OUTPUTS"]
 
@@ -165,11 +166,10 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     e_scale = rings * sp.mass * 9.81 * 1.0      # lifting the whole bed one diameter
     ke_end = float(sim.kinetic_energy())
     max_ov_engine = float(sim.compute_overlaps())
-    steady = pr.seconds - pr.first_step_seconds
     res["pour"] = dict(steps=pr.steps, seconds=pr.seconds,
                        first_step_seconds=pr.first_step_seconds,
-                       ms_per_step=1e3 * (steady / (pr.steps - 1) if pr.steps > 1
-                                          else pr.seconds / max(pr.steps, 1)), ke_end=ke_end,
+                       ms_per_step=ms_per_step(pr.seconds, pr.first_step_seconds, pr.steps),
+                       ke_end=ke_end,
                        ke_ratio=ke_end / e_scale, max_overlap_engine=max_ov_engine,
                        bed_y=[float(pr.positions[:, 1].min()), float(pr.positions[:, 1].max())])
 

@@ -22,7 +22,7 @@ from tqdm import tqdm
 
 from peclet.core.validation import check_bool, check_float, check_int
 
-__all__ = ["Progress"]
+__all__ = ["Progress", "ms_per_step"]
 
 #: tqdm's layout with the time left always shown (``remaining``) and the phase label last.
 _FORMAT = "{desc}{percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}, " \
@@ -86,3 +86,12 @@ class Progress:
 
     def close(self):
         self._bar.close()
+
+
+def ms_per_step(seconds, first_step_seconds, steps):
+    """Milliseconds per step of a stepping loop that took ``seconds`` for ``steps`` steps,
+    leaving out the first step (``first_step_seconds``: on a cold cache it holds the kernels'
+    compilation, which is not a stepping rate); the whole average when there was one step."""
+    if steps > 1:
+        return 1e3 * (seconds - first_step_seconds) / (steps - 1)
+    return 1e3 * seconds / max(steps, 1)
