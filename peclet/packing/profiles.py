@@ -331,12 +331,7 @@ def coordination(pack, walls=(), gap=0.0, periodic=False):
 
     pack = _check_pack(pack)
     per = check_bool("periodic", periodic)
-    g = check_float("gap", gap, 0.0)
-    walls = list(walls)
-    for k, w in enumerate(walls):
-        if not (isinstance(w, (tuple, list)) and len(w) == 2 and hasattr(w[0], "eval_root")):
-            raise PecletArgumentError(f"walls[{k}]", "a (SceneBuilder, root) pair", w)
-    out = engine_coordination(pack, walls, gap=g, periodic=per)
+    out = engine_coordination(pack, walls, gap=gap, periodic=per)   # checks walls and gap
     if len(pack.shell):
         if not per:
             # images one box apart would touch across the wall: put them out of every reach
