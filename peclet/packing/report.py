@@ -140,10 +140,11 @@ def _files(res, out, rep, prof, ax, b, figures, exports, spacing, timing,
 
     pack, cont, d = res.pack, res.container, res.container.d
     files = {}
-    t = time.perf_counter()
-    mesh = export.element_mesh(pack, spacing=spacing, d_elem=d)
-    timing["mesh"] = time.perf_counter() - t
     if figures:
+        # the bed view's mesh (the exports mesh the element on their own, at their resolution)
+        t = time.perf_counter()
+        mesh = export.element_mesh(pack, spacing=spacing, d_elem=d)
+        timing["mesh"] = time.perf_counter() - t
         t = time.perf_counter()
         if prof is not None:
             files["radial_profile"] = bed_figures.radial_profile_figure(
