@@ -17,6 +17,8 @@ import math
 from peclet.core.files import check_output_dir
 from peclet.core.validation import PecletArgumentError
 
+from .options import number, threads_option
+
 __all__ = ["add_parser", "run"]
 
 #: DrumSpec field -> the flag that sets it (errors name the flag).
@@ -80,19 +82,6 @@ def add_parser(sub):
     return p
 
 
-def _num(flag, text, conv):
-    try:
-        if conv is int:
-            v = float(text)
-            if not v.is_integer():
-                raise ValueError
-            return int(v)
-        return float(text)
-    except (TypeError, ValueError, OverflowError):
-        kind = "an integer" if conv is int else "a number"
-        raise PecletArgumentError(flag, kind, text) from None
-
-
 def spec_from_args(args):
     """The checked DrumSpec of the parsed ``args`` (errors name the flags)."""
     from peclet.packing.drum import DrumSpec
@@ -104,7 +93,7 @@ def spec_from_args(args):
         if text is None:
             kw[field] = None
             continue
-        kw[field] = _num(FLAGS[field], text, int if field in _INTS else float)
+        kw[field] = number(FLAGS[field], text, int if field in _INTS else float)
     if kw["froude"] is None and kw["rpm"] is None:
         raise PecletArgumentError("--froude", "given, or --rpm (exactly one)", None)
     for k in ("radius", "length", "fill", "grain_mm", "mu", "e", "polydispersity",
@@ -119,15 +108,7 @@ def run(args):
     from peclet.packing.drum import OUTPUT_DIRS, OUTPUTS, Drum, run_drum
 
     spec = spec_from_args(args)
-    threads = None
-    if args.threads is not None:
-        import numba
-
-        threads = _num("--threads", args.threads, int)
-        cap = int(numba.config.NUMBA_NUM_THREADS)
-        if not 1 <= threads <= cap:
-            raise PecletArgumentError("--threads", f"in [1, {cap}] (NUMBA_NUM_THREADS)",
-                                      threads)
+    threads = threads_option(args.threads)
     out, previous = check_output_dir(args.out, OUTPUTS, args.overwrite, "--out",
                                      dirs=OUTPUT_DIRS)
     try:

@@ -1,4 +1,7 @@
-"""Options shared by the subcommands that describe a bed (``pack``, ``ensemble``)."""
+"""Options shared by the subcommands: the bed's (``pack``, ``ensemble``), and the number and
+thread parsers of the kinematic-wall runs (``drum``, ``stir``)."""
+
+from peclet.core.validation import PecletArgumentError
 
 ELEMENT_HELP = (
     "library element (pall_ring, raschig_ring, berl_saddle, intalox_saddle, sphere, "
@@ -29,3 +32,31 @@ def add_bed_options(parser):
     parser.add_argument("--element", default="pall_ring", help=ELEMENT_HELP)
     parser.add_argument("--container", default="box:3.5", help=CONTAINER_HELP)
     parser.add_argument("--protocol", default="page", help="page | rain (default page)")
+
+
+def number(flag, text, conv):
+    """``text`` as a float, or (``conv`` int) an integer written as one (``"3"``, ``"3.0"``);
+    otherwise a PecletArgumentError naming ``flag``."""
+    try:
+        if conv is int:
+            v = float(text)
+            if not v.is_integer():
+                raise ValueError
+            return int(v)
+        return float(text)
+    except (TypeError, ValueError, OverflowError):
+        kind = "an integer" if conv is int else "a number"
+        raise PecletArgumentError(flag, kind, text) from None
+
+
+def threads_option(text, flag="--threads"):
+    """The ``--threads`` value (None: numba's default), an integer in [1, NUMBA_NUM_THREADS]."""
+    if text is None:
+        return None
+    import numba
+
+    threads = number(flag, text, int)
+    cap = int(numba.config.NUMBA_NUM_THREADS)
+    if not 1 <= threads <= cap:
+        raise PecletArgumentError(flag, f"in [1, {cap}] (NUMBA_NUM_THREADS)", threads)
+    return threads

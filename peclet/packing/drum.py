@@ -59,12 +59,10 @@ series ``drum.pvd`` indexing ``frames/frame_NNNN.vtu`` (grain centres as vertice
 velocity, speed, speed relative to the drum, shape id; plus the drum's rim circles as lines).
 Every file is written atomically (:mod:`peclet.core.files`).
 
-Subclassing the protocol base (``protocols.Protocol``, being refactored): the drum is a
-protocol with ``start`` = the lattice fill, ``before_step`` = set the wall's angular velocity at
-the start of each phase (spin-up, warm-up, measure), no kicks, no quench, ``after_step`` =
-settle by ``count_calm``/``settled`` and then count steps per phase; the sampling would be an
-``on_step`` callback of ``drive``. This module keeps its own loop only so as not to depend on
-the base while it moves.
+The phase loop (turn the wall at each phase's speed, count steps, keep the angle) and the
+ParaView writer are shared with the stirred column (:mod:`peclet.packing.series`); the pour
+protocols' kick/quench/settle base (:mod:`peclet.packing.protocols`) does not fit a run whose
+only driver is a turning wall, so the drum does not subclass it.
 """
 from __future__ import annotations
 
@@ -78,6 +76,8 @@ import numpy as np
 from peclet.core import geom
 from peclet.core.files import atomic_write, write_json
 from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
+
+from .series import Phase, grains_mesh, run_phases, write_series
 
 __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "G", "froude_of_rpm",
            "rpm_of_froude", "run_drum", "OUTPUTS", "add_drum_wall"]
@@ -372,15 +372,16 @@ class Drum:
 
     # ------------------------------------------------------------------ schedule
     def schedule(self):
-        """[(phase, omega, steps)]: spin-up (if any), warm-up, measure."""
+        """[:class:`~peclet.packing.series.Phase`]: spin-up (if any), warm-up, measure."""
         spec, out = self.spec, []
         if spec.spinup > 0:
             om_s = max(self.omega, math.sqrt(SPINUP_FROUDE * G / spec.radius))
-            out.append(("spinup", om_s, int(math.ceil(math.radians(spec.spinup) / om_s
-                                                      / self.dt))))
+            out.append(Phase("spinup", om_s, int(math.ceil(math.radians(spec.spinup) / om_s
+                                                           / self.dt))))
         per_rev = 2.0 * math.pi / self.omega / self.dt
-        out.append(("warmup", self.omega, int(math.ceil(spec.warmup * per_rev))))
-        out.append(("measure", self.omega, max(1, int(math.ceil(spec.revolutions * per_rev)))))
+        out.append(Phase("warmup", self.omega, int(math.ceil(spec.warmup * per_rev))))
+        out.append(Phase("measure", self.omega,
+                         max(1, int(math.ceil(spec.revolutions * per_rev)))))
         return out
 
     def sample_every(self):
@@ -389,6 +390,7 @@ class Drum:
         return max(1, int(round(min(t_rev / 90.0, 0.25) / self.dt)))
 
     def turn(self, omega):
+        self.current_omega = float(omega)
         self.sim.set_wall_velocity(self.wall, angular=(0.0, 0.0, float(omega)))
 
     def step(self, k=1):
@@ -523,7 +525,7 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
     drum.check_room()
     t0 = time.perf_counter()
     sched = drum.schedule()
-    total = sum(s for _, _, s in sched)
+    total = sum(ph.steps for ph in sched)
     bar = Progress(total, desc="drum", enabled=progress)
     sim = drum.build()
     d, R = drum.d, spec.radius * drum.d
@@ -534,30 +536,25 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
     every = drum.sample_every()
     t_rev = 2.0 * math.pi / drum.omega
     frame_at = {max(1, int(round(total * (i + 1) / spec.frames))) for i in range(spec.frames)}
-    snap_at = set(int(round(x)) for x in np.linspace(total - 1, total - 1 - (sched[-1][2] - 1),
+    snap_at = set(int(round(x)) for x in np.linspace(total - 1, total - 1 - (sched[-1].steps - 1),
                                                      spec.snapshots))
     samples, frames, snaps = [], [], []
-    k = 0
-    t_turn = 0.0
     drum.angle = 0.0
-    for phase, om, steps in sched:
-        drum.turn(om)
-        for i in range(steps):
-            drum.step()
-            k += 1
-            t_turn += drum.dt
-            drum.angle += om * drum.dt
-            if k in frame_at:
-                frames.append(_frame(drum, k, t_turn))
-            if (k - 1) in snap_at:
-                snaps.append(_frame(drum, k, t_turn))
-            if phase != "spinup" and (k % every == 0):
-                X = sim.get_positions()
-                window = None if window_half is None else np.abs(X[:, 2]) < window_half
-                s = measure(X, sim.get_velocities(), drum.radii, R, om, d, window)
-                s.update(t=t_turn, phase=phase, revolutions=drum.angle / (2 * math.pi))
-                samples.append(s)
-            bar.update(1, label=phase)
+
+    def observe(k, t_turn, angle, phase):
+        drum.angle = angle
+        if k in frame_at:
+            frames.append(_frame(drum, k, t_turn))
+        if (k - 1) in snap_at:
+            snaps.append(_frame(drum, k, t_turn))
+        if phase != "spinup" and (k % every == 0):
+            X = sim.get_positions()
+            window = None if window_half is None else np.abs(X[:, 2]) < window_half
+            s = measure(X, sim.get_velocities(), drum.radii, R, drum.current_omega, d, window)
+            s.update(t=t_turn, phase=phase, revolutions=angle / (2 * math.pi))
+            samples.append(s)
+
+    run_phases(sched, drum.dt, drum.step, drum.turn, observe, bar)
     bar.close()
     wall = time.perf_counter() - t0
     meas = [s for s in samples if s["phase"] == "measure"]
@@ -617,48 +614,22 @@ def _write(out, res, drum, frames, snaps, samples, figures, previous):
 
 
 def _write_series(out, drum, frames):
-    import meshio
-
-    from peclet.core.files import atomic_directory
-
     R = drum.spec.radius * drum.d
     L = drum.spec.length * drum.d
     om = drum.omega
 
-    def fill(tmp):
-        for i, f in enumerate(frames):
-            X, V = f["X"], f["V"]
-            n = len(X)
-            vr = V - om * np.column_stack([-X[:, 1], X[:, 0], np.zeros(n)])
-            th = np.linspace(0, 2 * np.pi, 65)[:-1] + f["turned"]
-            rims = [np.column_stack([R * np.cos(th), R * np.sin(th), np.full(64, z)])
-                    for z in (-0.5 * L, 0.5 * L)]
-            pts = np.vstack([X] + rims)
-            lines = np.array([[n + j * 64 + m, n + j * 64 + (m + 1) % 64]
-                              for j in range(2) for m in range(64)])
-            pad = lambda a: np.concatenate([a, np.zeros((128,) + a.shape[1:], a.dtype)])  # noqa
-            mesh = meshio.Mesh(pts, [("vertex", np.arange(n)[:, None]), ("line", lines)],
-                               point_data={"radius": pad(drum.radii), "velocity": pad(V),
-                                           "speed": pad(np.sqrt((V * V).sum(1))),
-                                           "relative_speed": pad(np.sqrt((vr * vr).sum(1))),
-                                           "shape_id": pad(np.asarray(f["shape"], np.int32))})
-            meshio.write(os.path.join(tmp, f"frame_{i:04d}.vtu"), mesh, file_format="vtu")
+    def mesh_of(f):
+        X, V = f["X"], f["V"]
+        vr = V - om * np.column_stack([-X[:, 1], X[:, 0], np.zeros(len(X))])
+        th = np.linspace(0, 2 * np.pi, 65)[:-1] + f["turned"]
+        rims = [np.column_stack([R * np.cos(th), R * np.sin(th), np.full(64, z)])
+                for z in (-0.5 * L, 0.5 * L)]
+        return grains_mesh(X, {"radius": drum.radii, "velocity": V,
+                               "speed": np.sqrt((V * V).sum(1)),
+                               "relative_speed": np.sqrt((vr * vr).sum(1)),
+                               "shape_id": np.asarray(f["shape"], np.int32)}, rims)
 
-    fdir = os.path.join(out, "frames")
-    if os.path.isdir(fdir):
-        import shutil
-        shutil.rmtree(fdir)
-    atomic_directory(fdir, fill)
-    rows = "\n".join(f'    <DataSet timestep="{f["t"]:.9g}" part="0" '
-                     f'file="frames/frame_{i:04d}.vtu"/>' for i, f in enumerate(frames))
-    text = ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" '
-            'byte_order="LittleEndian">\n  <Collection>\n' + rows +
-            "\n  </Collection>\n</VTKFile>\n")
-
-    def w(tmp):
-        with open(tmp, "w") as fh:
-            fh.write(text)
-    atomic_write(os.path.join(out, "drum.pvd"), w)
+    write_series(out, "drum", frames, mesh_of)
 
 
 def _snapshot_figure(path, drum, snaps, res):
