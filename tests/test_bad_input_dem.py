@@ -225,7 +225,7 @@ BAD_SAVES = [
     ("wall invert 0.5", _with("wall0_prm", lambda a: _set(a, 0, 0.5)), "wall0_prm"),
     ("wall friction -1", _with("wall0_prm", lambda a: _set(a, 2, -1.0)), "mu"),
     ("iterations 1e9", _mutated(iters=np.array([10 ** 9, 8], np.int64)), "position"),
-    ("version 3", _mutated(version=np.int64(3)), "version"),
+    ("version 4", _mutated(version=np.int64(4)), "version"),
     ("version 1 with the version 2 keys", _mutated(version=np.int64(1)), "keys"),
     ("version 0", _mutated(version=np.int64(0)), "version"),
     ("non-unit wall quaternion", _with("wall_motion", lambda a: _set(a, (0, 6), 2.0)),

@@ -19,10 +19,12 @@ from peclet.core.geom.transforms import quat_norm
 from peclet.core.validation import PecletArgumentError, check_int
 from peclet.dem.shapes import SceneShape
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 #: Version 1 saves (before moving walls, per-pair materials and external loads) still load.
 _V2_KEYS = ("wall_motion", "material_ids", "wall_material_ids", "pair_materials",
             "ext_force", "ext_torque")
+#: Version 3 adds the bodies' scales (version 2 saves load with every scale 1).
+_V3_KEYS = ("scales",)
 _WHAT = "a peclet Simulation save"
 #: A saved quaternion is unit to a few ulps; one farther than this was not written by save.
 _UNIT_TOL = 1e-12
@@ -56,7 +58,9 @@ def to_arrays(sim):
               "wall_material_ids": wids, "pair_materials": pairs,
               "ext_force": sim._ext_force if sim._ext_force is not None else np.zeros((0, 3)),
               "ext_torque": sim._ext_torque if sim._ext_torque is not None
-              else np.zeros((0, 3))})
+              else np.zeros((0, 3)),
+              "scales": sim._scales.values if sim._scales.values is not None
+              else np.zeros(0)})
     for i, s in enumerate(sim._shapes):
         scene = isinstance(s, SceneShape)
         d[f"shape{i}_kind"] = np.int64(1 if scene else 0)
@@ -128,6 +132,8 @@ def _required_keys(d):
     if "version" in d and d["version"].shape == () and d["version"].dtype.kind == "i" \
             and int(d["version"]) >= 2:
         keys.update(_V2_KEYS)
+        if int(d["version"]) >= 3:
+            keys.update(_V3_KEYS)
     for i in range(n_shapes):
         keys.update({f"shape{i}_kind", f"shape{i}_radius"})
         if f"shape{i}_kind" in d and d[f"shape{i}_kind"].shape == () \
@@ -187,6 +193,12 @@ def _rebuild(cls, d):
     _load_warm_start(sim, d)
     if version >= 2:
         _load_v2(sim, d, n_walls)
+    if version >= 3:
+        sc = _arr(d, "scales", np.float64, (None,))
+        if len(sc) not in (0, sim._bodies.n):
+            raise PecletArgumentError("scales", f"0 or {sim._bodies.n} entries", len(sc))
+        if len(sc):
+            sim._scales.values = sim._scales.checked(sc, sim._bodies.n)  # masses as saved
     sim._step_count = _scalar(d, "step_count", 0, 2 ** 62)
     t = float(_arr(d, "time", np.float64, ()))
     if not np.isfinite(t):

@@ -39,6 +39,7 @@ from peclet.dem.materials import (MAX_MATERIAL_ID, SIMULATION_DEFAULT, MaterialT
 from peclet.dem.wallmotion import WallMotion
 from peclet.dem.guards import StepError, check_state, speed_bound  # noqa: F401 (API)
 from peclet.dem.rigid import advance_all
+from peclet.dem.scales import Scales
 from peclet.dem.shapes import analytic_wall, build_geometry, scene_shape, sphere_shape
 
 #: Default speculative margin, as a fraction of the smallest bounding radius in use; the step
@@ -92,6 +93,9 @@ class Simulation:
         self._shapes = []
         self._walls = []
         self._geo = None
+        self._geo_shapes = ()
+        self._scales = Scales()
+        self._table, self._table_key = None, None
         self._material = SIMULATION_DEFAULT
         self._pos_iters, self._vel_iters = 10, 8
         self._gravity = np.zeros(3)
@@ -345,6 +349,32 @@ class Simulation:
         """(N, 4) float64 copy of the unit quaternions (x, y, z, w)."""
         return self._bodies.quat.copy()
 
+    def set_scales(self, scales):
+        """Scale factor per body (N,), each in (0, 1000]: a body of shape k and scale s is
+        shape k enlarged by s about its centre of mass (sphere radius, tree, probes, bounding
+        radius; :mod:`peclet.dem.scales`). Mass and inertia follow: changing a body's scale
+        from s to s' divides its inverse mass by (s'/s)^3 and its inverse moments by
+        (s'/s)^5, so set masses for the CURRENT scales, or scales first. Positions are
+        centres and stay where they are (a grown body may overlap: :meth:`relax`)."""
+        b = self._bodies
+        new = self._scales.checked(scales, b.n)
+        self._scales.resize(b.n)
+        old = self._scales.values if self._scales.values is not None else np.ones(b.n)
+        k = new / old
+        b.inv_mass = b.inv_mass / k ** 3
+        b.inv_inertia = b.inv_inertia / (k ** 5)[:, None]
+        self._scales.values = new
+
+    def set_scales_uniform(self, scale):
+        """Every body's scale set to ``scale`` in (0, 1000] (see :meth:`set_scales`)."""
+        self.set_scales(np.full(self._bodies.n, Scales.checked_uniform(scale)))
+
+    def get_scales(self):
+        """(N,) scale per body (1 for a body never scaled)."""
+        self._scales.resize(self._bodies.n)
+        v = self._scales.values
+        return np.ones(self._bodies.n) if v is None else v.copy()
+
     def set_inv_mass(self, inv_mass):
         """Inverse masses (N,), each finite and >= 0 (0 = not moved by contacts or gravity)."""
         self._per_particle(self._bodies.set_inv_mass, inv_mass)
@@ -384,14 +414,33 @@ class Simulation:
         return self._time
 
     # ------------------------------------------------------------------ derived quantities
+    def _shape_table(self):
+        # (internal shapes, internal shape id per body): the registered shapes and ids
+        # themselves unless some body is scaled (peclet.dem.scales)
+        b = self._bodies
+        self._scales.resize(b.n)
+        if not self._scales.active():
+            return self._shapes, b.shape
+        key = (b.shape, self._scales.values, len(self._shapes))
+        old = self._table_key
+        if old is None or old[0] is not key[0] or old[1] is not key[1] or old[2] != key[2]:
+            self._table = self._scales.table(self._shapes, b.shape)
+            self._table_key = key
+        return self._table
+
     def _geometry(self):
-        if self._geo is None:
-            self._geo = build_geometry(self._shapes, self._walls)
+        shapes, _ = self._shape_table()
+        same = (len(shapes) == len(self._geo_shapes)
+                and all(a is b for a, b in zip(shapes, self._geo_shapes)))
+        if self._geo is None or not same:
+            self._geo = build_geometry(shapes, self._walls)
+            self._geo_shapes = tuple(shapes)
         return self._geo
 
     def _radii(self):
-        r = np.array([s.radius for s in self._shapes], dtype=np.float64)
-        return r[self._bodies.shape]
+        shapes, ids = self._shape_table()
+        r = np.array([s.radius for s in shapes], dtype=np.float64)
+        return r[ids]
 
     def _need_shapes(self):
         if not self._shapes:
@@ -438,7 +487,8 @@ class Simulation:
             self._materials.check_declared(b.n, self._material)
 
     def _margin(self, vel, omega, dt, pos=None):
-        base = self._margin_fraction * float(np.min([s.radius for s in self._shapes]))
+        base = self._margin_fraction * float(np.min([s.radius for s in
+                                                     self._shape_table()[0]]))
         m = speculative_margin(base, self._radii(), vel, omega, dt)
         if self._wallmo.moving() and dt is not None:
             # a moving wall's surface speed at any body enters like a body's
@@ -451,7 +501,7 @@ class Simulation:
         if self._wallmo.n:
             geo.wall_pos[:] = self._wallmo.pos
             geo.wall_rot[:] = self._wallmo.rotations()
-        return self._detector.detect(geo, self._bodies.shape, pos, rot, margin,
+        return self._detector.detect(geo, self._shape_table()[1], pos, rot, margin,
                                      self._margin_fraction, self._domain, self.timings)
 
     def _slop(self):
