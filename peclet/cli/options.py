@@ -26,12 +26,16 @@ CONTAINER_HELP = ("box:L (periodic) | column:N (diameter N D, floor at y = 0) | 
                   "in element diameters D (default box:3.5, the page's)")
 
 
-def add_bed_options(parser):
+def add_bed_options(parser, protocols=("page", "rain")):
     """--element, --container and --protocol, with the page's defaults (values stay text: each
-    command checks them before any work and names the flag in its one-line error)."""
+    command checks them before any work and names the flag in its one-line error).
+    ``protocols``: the ones the command offers (the help lists them)."""
     parser.add_argument("--element", default="pall_ring", help=ELEMENT_HELP)
     parser.add_argument("--container", default="box:3.5", help=CONTAINER_HELP)
-    parser.add_argument("--protocol", default="page", help="page | rain (default page)")
+    extra = (" (grow: a periodic cube sized by --count, no --container)"
+             if "grow" in protocols else "")
+    parser.add_argument("--protocol", default="page",
+                        help=" | ".join(protocols) + " (default page)" + extra)
 
 
 def number(flag, text, conv):

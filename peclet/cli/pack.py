@@ -38,7 +38,8 @@ def add_parser(sub):
                        "deposition), analyse the bed and write pack.npz, results.json, "
                        "figures and exports into --out.")
     p.set_defaults(func=run)
-    add_bed_options(p)
+    add_bed_options(p, ("page", "rain", "grow"))
+    p.set_defaults(container=None)      # grow takes none; page and rain default to box:3.5
     p.add_argument("--count", default="48", help="number of elements (default 48)")
     p.add_argument("--mu", default="0.5", help="element-element friction (default 0.5)")
     p.add_argument("--wall-mu", default=None, help="wall friction (default: --mu)")
@@ -54,6 +55,8 @@ def add_parser(sub):
                    help="rain only: steps between insertions (default 4)")
     p.add_argument("--drop", default=None, help="rain only: insertion height above the bed, "
                    "in D (default 30)")
+    p.add_argument("--rate", default=None, help="grow only: starting growth rate d ln(phi)/dt "
+                   "in (0, 10] (default 0.5; the overlap control slows it near jamming)")
     p.add_argument("--out", default=None, help="output directory (default ./pack_results; "
                    "with --resume: the resumed run's)")
     p.add_argument("--threads", default=None, help="numba threads (default: numba's)")
@@ -119,7 +122,8 @@ def _renamed(exc, flag):
 #: Options only one protocol uses: given with the other, they are refused (as ``peclet
 #: ensemble`` refuses ``--steps-scale`` with rain), never silently ignored.
 PROTOCOL_OPTIONS = {"--steps-scale": ("steps_scale", "page"), "--batch": ("batch", "rain"),
-                    "--insert-every": ("insert_every", "rain"), "--drop": ("drop", "rain")}
+                    "--insert-every": ("insert_every", "rain"), "--drop": ("drop", "rain"),
+                    "--rate": ("rate", "grow")}
 
 #: Most Monte Carlo points per bulk window: each costs about 100 bytes at the sampling's peak
 #: (coordinates, the counts, the window's temporaries), so 10^7 are about 1 GB.
@@ -250,9 +254,13 @@ def run(args):
     we = e if args.wall_restitution is None else _num("--wall-restitution",
                                                       args.wall_restitution, float, lo=0.0,
                                                       hi=1.0)
-    if args.protocol not in ("page", "rain"):
-        raise PecletArgumentError("--protocol", "one of 'page', 'rain'", args.protocol)
+    if args.protocol not in ("page", "rain", "grow"):
+        raise PecletArgumentError("--protocol", "one of 'page', 'rain', 'grow'", args.protocol)
     _protocol_options(args)
+    if args.protocol == "grow":
+        return _grow(args, count, seed, mu, e, threads)
+    if args.container is None:
+        args.container = "box:3.5"
     scale = 1.0 if args.steps_scale is None else _num("--steps-scale", args.steps_scale,
                                                        float, lo=0.0, hi=100.0, lo_open=True)
     if isinstance(args.element, str) and args.element.endswith(".npz"):
@@ -291,6 +299,38 @@ def run(args):
     if not _landed(res, out):
         return 1
     return _finish(res, out, args, cdir, previous)
+
+
+def _grow(args, count, seed, mu, e, threads):
+    """``--protocol grow``: growth to jamming in a periodic cube (peclet.packing.grow)."""
+    from peclet.packing import grow as growth
+
+    if args.container is not None:
+        raise PecletArgumentError("--container", "left out with --protocol grow (it grows the "
+                                  "bed in a periodic cube sized by --count)", args.container)
+    for flag, given in (("--wall-mu", args.wall_mu), ("--wall-restitution",
+                                                      args.wall_restitution)):
+        if given is not None:
+            raise PecletArgumentError(flag, "left out with --protocol grow (a periodic cube "
+                                      "has no walls)", given)
+    rate = 0.5 if args.rate is None else _num("--rate", args.rate, float, lo=0.0, hi=10.0,
+                                              lo_open=True)
+    if isinstance(args.element, str) and args.element.endswith(".npz"):
+        raise PecletArgumentError("--element", "a library element with --protocol grow",
+                                  args.element)
+    from peclet.packing import api
+    try:
+        api._resolve_element(args.element)
+    except PecletArgumentError as exc:
+        raise _renamed(exc, "--element") from None
+    spec = growth.GrowSpec(element=args.element, count=count, rate=rate, mu=mu, e_n=e,
+                           seed=seed).checked({"count": "--count", "rate": "--rate"})
+    out, previous = check_output_dir(args.out or "pack_results", growth.OUTPUTS,
+                                     args.overwrite, "--out")
+    res = growth.grow(spec, progress=not args.quiet, threads=threads)
+    growth.write_outputs(res, out, previous, figures=not args.no_figures)
+    print(growth.table(res))
+    return 0
 
 
 def _finish(res, out, args, cdir, previous):
