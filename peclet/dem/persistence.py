@@ -25,6 +25,10 @@ _V2_KEYS = ("wall_motion", "material_ids", "wall_material_ids", "pair_materials"
             "ext_force", "ext_torque")
 #: Version 3 adds the bodies' scales (version 2 saves load with every scale 1).
 _V3_KEYS = ("scales",)
+#: Present (all four) only in a save of a simulation that used the Hertz engine
+#: (peclet/dem/hertz.py): its moduli per material id and the tangential history, so a Hertz
+#: run resumes bitwise. A save without them loads as before.
+_HERTZ_KEYS = ("hertz_moduli", "hertz_keys", "hertz_xi", "hertz_n")
 _WHAT = "a peclet Simulation save"
 #: A saved quaternion is unit to a few ulps; one farther than this was not written by save.
 _UNIT_TOL = 1e-12
@@ -61,6 +65,9 @@ def to_arrays(sim):
               else np.zeros((0, 3)),
               "scales": sim._scales.values if sim._scales.values is not None
               else np.zeros(0)})
+    hz = sim._hertz
+    if hz.moduli or len(hz.keys):
+        d.update(zip(_HERTZ_KEYS, hz.arrays()))
     for i, s in enumerate(sim._shapes):
         scene = isinstance(s, SceneShape)
         d[f"shape{i}_kind"] = np.int64(1 if scene else 0)
@@ -134,6 +141,8 @@ def _required_keys(d):
         keys.update(_V2_KEYS)
         if int(d["version"]) >= 3:
             keys.update(_V3_KEYS)
+    if "hertz_moduli" in d:
+        keys.update(_HERTZ_KEYS)
     for i in range(n_shapes):
         keys.update({f"shape{i}_kind", f"shape{i}_radius"})
         if f"shape{i}_kind" in d and d[f"shape{i}_kind"].shape == () \
@@ -199,6 +208,8 @@ def _rebuild(cls, d):
             raise PecletArgumentError("scales", f"0 or {sim._bodies.n} entries", len(sc))
         if len(sc):
             sim._scales.values = sim._scales.checked(sc, sim._bodies.n)  # masses as saved
+    if "hertz_moduli" in d:
+        _load_hertz(sim, d)
     sim._step_count = _scalar(d, "step_count", 0, 2 ** 62)
     t = float(_arr(d, "time", np.float64, ()))
     if not np.isfinite(t):
@@ -270,6 +281,23 @@ def _load_v2(sim, d, n_walls):
             raise PecletArgumentError(key, f"0 or {n} rows", len(a))
         if len(a):
             setter(a)
+
+
+def _load_hertz(sim, d):
+    # moduli through the validating setter; the history as saved (bitwise resume)
+    for mid, e, nu in _arr(d, "hertz_moduli", np.float64, (None, 3)).tolist():
+        if mid != int(mid):
+            raise PecletArgumentError("hertz_moduli", "integer material ids", mid)
+        sim.set_hertz_material(int(mid), e, nu)
+    keys = _arr(d, "hertz_keys", np.int64, (None,)).astype(np.int64)
+    xi = _arr(d, "hertz_xi", np.float64, (len(keys), 3))
+    if not np.all(np.isfinite(xi)):
+        raise PecletArgumentError("hertz_xi", "finite numbers", "non-finite entries")
+    if len(keys) > 1 and not np.all(np.diff(keys) >= 0):
+        raise PecletArgumentError("hertz_keys", "sorted", "unsorted keys")
+    hz = sim._hertz
+    hz.keys, hz.xi = keys, xi.copy()
+    hz.n_bodies = _scalar(d, "hertz_n", -1, 2 ** 40)
 
 
 def _load_warm_start(sim, d):

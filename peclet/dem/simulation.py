@@ -37,6 +37,7 @@ from peclet.dem.domain import Domain
 from peclet.dem.materials import (MAX_MATERIAL_ID, SIMULATION_DEFAULT, MaterialTable,
                                   clamp_to_cone, material, per_contact)
 from peclet.dem.wallmotion import WallMotion
+from peclet.dem.hertz import HertzState
 from peclet.dem.guards import StepError, check_state, speed_bound  # noqa: F401 (API)
 from peclet.dem.rigid import advance_all
 from peclet.dem.scales import Scales
@@ -111,6 +112,7 @@ class Simulation:
         self._materials = MaterialTable()
         self._ext_force = None
         self._ext_torque = None
+        self._hertz = HertzState()         # the Hertz engine's moduli and contact history
         #: Accumulated wall-clock seconds per phase (broad, narrow, solver = velocity solve +
         #: integration + projection, total), for the benchmark.
         self.timings = {"broad": 0.0, "narrow": 0.0, "solver": 0.0, "total": 0.0}
@@ -646,6 +648,57 @@ class Simulation:
             self._guard(x, q, b.vel, b.omega)
             b.pos, b.quat = x, q
         self._warm.clear()
+
+    # ------------------------------------------------------------------ Hertz–Mindlin engine
+    def set_hertz_material(self, material_id, youngs, poisson):
+        """Elastic moduli of material id ``material_id`` (in [0, 1023], the ids of
+        :meth:`set_material_ids` / :meth:`set_wall_material_id`) for :meth:`step_hertz`:
+        Young's modulus ``youngs`` (> 0, pressure in the caller's units) and Poisson ratio
+        ``poisson`` in (-1, 0.5). Every body's id must have moduli before a Hertz step; a wall
+        without a material id is rigid. Restitution and friction still come from the pair
+        material (:meth:`set_pair_material`, :meth:`set_material_params`, the wall's own)."""
+        self._hertz.set_material(material_id, youngs, poisson)
+
+    def step_hertz(self, substeps=1, dt=None, skin_frac=None):
+        """Advance by ``substeps`` (an integer in [1, 10**6]) explicit Hertz–Mindlin substeps of
+        ``dt`` each (else the :meth:`set_dt` value; finite, > 0), spheres only (see
+        :mod:`peclet.dem.hertz` for the force law, the damping that reproduces each pair's
+        ``e_n``, the tangential history and the integrator). ``skin_frac`` (in (0, 10], default
+        ``hertz.DEFAULT_SKIN_FRACTION``) is the skin of the candidate list as a fraction of the
+        smallest radius: contacts are detected within it and the list is reused while no pair
+        can have closed it; it sets the speed only, never the result (bit for bit). Raises
+        PecletArgumentError when ``dt`` exceeds ``hertz.RAYLEIGH_FRACTION`` of the smallest
+        Rayleigh time, for a material id without moduli, a composed particle or ``e_n`` below
+        ``hertz.E_MIN``; :class:`StepError` when
+        the state goes non-finite or runs away (the state of that substep's start is kept).
+        The impulse :meth:`step` is unaffected; the two engines keep separate contact caches.
+        """
+        from peclet.dem import hertz
+
+        n = check_int("substeps", substeps, 1, 10 ** 6)
+        if dt is None:
+            if self._dt is None:
+                raise PecletArgumentError("dt", "given, or set with set_dt(dt) before",
+                                          None, "no time step")
+            dt = self._dt
+        dt = check_float("dt", dt, 0.0, lo_open=True)
+        skin = hertz.DEFAULT_SKIN_FRACTION if skin_frac is None else check_float(
+            "skin_frac", skin_frac, 0.0, 10.0, lo_open=True)
+        self._check_ready()
+        hertz.check(self, self._hertz, dt)
+        self._hertz.cand = None          # materials, walls or bodies may have changed since
+        for _ in range(n):
+            if self._bodies.n == 0:
+                self._step_count += 1
+                self._time += dt
+                continue
+            hertz.substep(self, self._hertz, dt, skin)
+
+    def hertz_contacts(self):
+        """The touching contacts of the last Hertz substep with their forces (a dict, see
+        :func:`peclet.dem.hertz.last_listing`; SI-like units of the caller, world frame)."""
+        from peclet.dem import hertz
+        return hertz.last_listing(self._hertz)
 
     def _guard(self, x, q, v, w):
         radii = self._radii()
