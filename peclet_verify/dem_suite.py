@@ -9,13 +9,14 @@ engine (a :class:`~peclet_verify.dem_backends.DemBackend`; or ``--peclet-dem-bac
 module:factory``); then ``pytest --peclet-certify``. Without either, peclet.dem is certified.
 Each certificate searches the active profile's examples (capped: every example is a run of
 the engine) and prints a shrunk counterexample as a runnable page-API snippet. Names are in
-:data:`peclet_verify.report.DEM_CERTIFICATES`.
+the registry's ``dem`` scope (:mod:`peclet_verify.registry`).
 """
 
 import pytest
 
-from . import mechanics as M
 from . import properties as P
+from . import registry as REG
+from . import strategies as pst
 
 __all__ = ["test_dem_determinism_one_thread", "test_dem_determinism_across_threads",
            "test_dem_buffer_growth", "test_dem_binary_restitution", "test_dem_slide_to_roll",
@@ -34,18 +35,18 @@ def _tagged(result, backend):
     return result
 
 
-_IMPORT = "from peclet_verify.mechanics import Collision, Incline, Pour, Roll, Rotor\n"
+_IMPORT = "from peclet_verify.strategies import Collision, Incline, Pour, Roll, Rotor\n"
 
 
 def describe_pour(p):
-    return f"{_IMPORT}{p!r}\n# the run, in the page's API:\n{M.pour_scenario(p).snippet()}"
+    return f"{_IMPORT}{p!r}\n# the run, in the page's API:\n{pst.pour_scenario(p).snippet()}"
 
 
 def describe_hints(a):
     p, hints = a
     cap, ccap = hints[0]
     return (f"{_IMPORT}pour = {p!r}\nhints = {hints!r}\n# the first hinted run, in the page's API:\n"
-            f"{M.pour_scenario(p, capacity=cap, contact_capacity=ccap).snippet()}")
+            f"{pst.pour_scenario(p, capacity=cap, contact_capacity=ccap).snippet()}")
 
 
 def describe_case(x):
@@ -64,13 +65,14 @@ def _certify(peclet_certificate, be, prop, strategy, name, kind, describe=descri
     peclet_certificate(_tagged(_search(be, prop, strategy, name, kind, describe), be))
 
 
-def _dem_certificate(test_name, doc, prop, strategy, name, kind, describe=describe_case):
+def _dem_certificate(test_name, doc, prop, strategy, key, kind, describe=describe_case):
     """A certificate test named ``test_name`` (docstring ``doc``) that records the
-    certificate of ``prop(backend, example)`` over ``strategy()`` (one test function serves
-    every certificate that is a plain property search)."""
+    certificate ``key`` of the registry: ``prop(backend, example)`` over ``strategy()`` (one
+    test function serves every certificate that is a plain property search)."""
     @pytest.mark.peclet_certify
     def test(peclet_certificate, peclet_dem_backend):
-        _certify(peclet_certificate, peclet_dem_backend, prop, strategy(), name, kind, describe)
+        _certify(peclet_certificate, peclet_dem_backend, prop, strategy(), REG.title(key), kind,
+                 describe)
     test.__name__ = test.__qualname__ = test_name
     test.__doc__ = doc
     return test
@@ -78,8 +80,8 @@ def _dem_certificate(test_name, doc, prop, strategy, name, kind, describe=descri
 
 test_dem_determinism_one_thread = _dem_certificate(
     "test_dem_determinism_one_thread", "Two runs of a pour at one thread: the same bytes.",
-    M.determinism_one_thread, M.pours, "determinism at one thread (DEM backend)",
-    "determinism", describe_pour)
+    P.determinism_one_thread, pst.pours, "dem_determinism_one_thread", "determinism",
+    describe_pour)
 
 
 @pytest.mark.peclet_certify
@@ -87,17 +89,17 @@ def test_dem_determinism_across_threads(peclet_certificate, peclet_dem_backend):
     """A pour at every thread count the engine runs: the bytes of the one-thread run.
     "not claimed" (skipped, listed) for an engine declaring ``thread_determinism = False``."""
     be = peclet_dem_backend
-    name = "determinism across threads (DEM backend)"
+    name = REG.title("dem_determinism_across_threads")
     if not getattr(be, "thread_determinism", True):
-        res = P.PropertyResult(name, False, 0, float("nan"), "distinct state hashes",
-                               f"{getattr(be, 'name', be)!r} declares thread_determinism = "
-                               "False", M.NOT_CLAIMED)
+        res = P.PropertyResult(name, False, 0, float("nan"), REG.certificate(
+            "dem_determinism_across_threads").figure, f"{getattr(be, 'name', be)!r} declares "
+            "thread_determinism = False", P.NOT_CLAIMED)
     else:
-        res = _search(be, M.determinism_across_threads, M.pours(), name, "determinism",
+        res = _search(be, P.determinism_across_threads, pst.pours(), name, "determinism",
                       describe_pour)
         res.name = name   # also when "unavailable" (a property's own result)
     peclet_certificate(_tagged(res, be))
-    if res.status == M.NOT_CLAIMED:
+    if res.status == P.NOT_CLAIMED:
         pytest.skip(f"{name}: not claimed by the engine ({res.counterexample})")
 
 
@@ -106,30 +108,30 @@ def test_dem_buffer_growth(peclet_certificate, peclet_dem_backend):
     """A pour under capacity hints that force growth: the trajectory of ample hints, no
     contact lost, no crash."""
     from hypothesis import strategies as st
-    _certify(peclet_certificate, peclet_dem_backend, lambda be, a: M.buffer_growth(be, *a),
-             st.tuples(M.pours(), M.capacity_hints()), "buffer growth (DEM backend)", "buffer",
-             describe_hints)
+    _certify(peclet_certificate, peclet_dem_backend, lambda be, a: P.dem_buffer_growth(be, *a),
+             st.tuples(pst.pours(), pst.capacity_hints()), REG.title("dem_buffer_growth"),
+             "buffer", describe_hints)
 
 
 test_dem_binary_restitution = _dem_certificate(
     "test_dem_binary_restitution",
     "Two spheres head-on: separation / approach speed = e; momentum conserved.",
-    M.binary_restitution, M.collisions, "binary restitution", "mechanics")
+    P.binary_restitution, pst.collisions, "binary_restitution", "mechanics")
 
 
 test_dem_slide_to_roll = _dem_certificate(
     "test_dem_slide_to_roll", "A solid sphere launched sliding: rolls at v = 5/7 v0.",
-    M.slide_to_roll, M.rolls, "slide to roll", "mechanics")
+    P.slide_to_roll, pst.rolls, "slide_to_roll", "mechanics")
 
 
 test_dem_incline_stick_slip = _dem_certificate(
     "test_dem_incline_stick_slip",
     "A cube on an incline: sticks for tan(theta) < mu, slides at g (sin - mu cos) above.",
-    M.incline, M.inclines, "incline stick/slip", "mechanics")
+    P.incline, pst.inclines, "incline", "mechanics")
 
 
 test_dem_free_rigid_body = _dem_certificate(
     "test_dem_free_rigid_body",
     "A torque-free asymmetric body: energy and angular momentum conserved, the "
     "intermediate-axis flip period of Euler's equations.",
-    M.free_rigid_body, M.rotors, "free rigid body", "rotor")
+    P.free_rigid_body, pst.rotors, "free_rigid_body", "rotor")

@@ -1,5 +1,8 @@
 """Mass-property engines under certification: the protocol, peclet's quadrature, a child-process
-engine, and the certificate against the closed forms of the leaf table.
+engine. The certificate against the closed forms of the leaf table is
+:func:`peclet_verify.properties.mass.mass_properties_certificate` (also importable from here,
+as are ``closed_form_world`` and ``MASS_KINDS``, loaded on first use: this module stays free of
+Hypothesis for the child processes that serve an engine).
 
 Protocol (:class:`MassBackend`)
 -------------------------------
@@ -34,15 +37,20 @@ from .family_child import FamilyChild, load_factory
 
 __all__ = ["MassBackend", "PecletMassBackend", "SubprocessMassBackend", "check_mass_backend",
            "load_mass_backend", "closed_form_world", "mass_properties_certificate",
-           "MASS_KINDS", "mass_child_command"]
+           "MASS_KINDS", "mass_child_command", "wheel_mass_child_command"]
 
-#: Leaves with a closed form in the leaf table and an exact distance (the exact leaves), less
-#: the cone: peclet's quadrature overflows its 128 breakpoint slots on some turned cones in
-#: their ball's box ("a line crossed the surface more than 128 times", a known limitation,
-#: see tests/test_leaf_closed_forms.py), as properties/test_certify_quadrature.py also leaves
-#: it out. Pass ``kinds`` to include it.
-MASS_KINDS = ("sphere", "box", "hollow_cylinder", "torus", "capsule")
-DEFAULT_FLOOR = 1e-12
+#: Names published here that live with the certificate (module -> names), loaded on use.
+_MOVED = {"peclet_verify.properties.mass": ("closed_form_leaf", "closed_form_world",
+                                            "mass_properties_certificate", "DEFAULT_FLOOR"),
+          "peclet_verify.strategies.mass": ("MASS_KINDS",)}
+
+
+def __getattr__(name):
+    import importlib
+    for module, names in _MOVED.items():
+        if name in names:
+            return getattr(importlib.import_module(module), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @runtime_checkable
@@ -146,148 +154,14 @@ def load_mass_backend(spec, option="--peclet-mass-backend"):
     return load_factory(spec, option, PecletMassBackend, check_mass_backend)
 
 
+def wheel_mass_child_command(python):
+    """Command serving the upstream ``peclet-geom`` wheel's mass properties installed for
+    ``python`` (through its dialect adapter :mod:`peclet_verify.peclet_geom_mass_child`)."""
+    return [python, os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                 "peclet_geom_mass_child.py")]
+
+
 def mass_child_command(python=None):
     """Command serving peclet's quadrature (and DEM) from a child of ``python``."""
     return [python or sys.executable,
             os.path.join(os.path.dirname(os.path.abspath(__file__)), "peclet_dem_child.py")]
-
-
-# ---------------------------------------------------------------------------- certificate
-def closed_form_leaf(recipe):
-    """``(exact, s, R, com)`` of a one-leaf recipe: the leaf table's closed form ``exact``
-    (:func:`peclet.core.geom.leaves.closed_form_mass_properties`, at unit density in the leaf's
-    frame), the leaf's scale ``s`` and rotation matrix ``R``, and its centre of mass in the
-    root's parent frame; None without a closed form."""
-    from peclet.core.geom import quat_to_matrix
-    from peclet.core.geom.leaves import closed_form_mass_properties
-    node = recipe.root
-    if not hasattr(node, "kind") or recipe.reframes:
-        return None
-    exact = closed_form_mass_properties(node.kind, list(node.params))
-    if exact is None:
-        return None
-    tr = node.transform
-    s = float(tr.scale)
-    R = quat_to_matrix(np.asarray(tr.rotation, float))
-    com = np.asarray(tr.translation, float) + s * R @ np.asarray(exact.com, float)
-    return exact, s, R, com
-
-
-def closed_form_world(recipe):
-    """(volume, com (3,), inertia (3, 3)) of a one-leaf recipe at unit density in the root's
-    parent frame (the leaf's transform applied: volume s^3, inertia s^5 R I R^T), from
-    :func:`closed_form_leaf`; None without a closed form."""
-    leaf = closed_form_leaf(recipe)
-    if leaf is None:
-        return None
-    exact, s, R, com = leaf
-    inertia = s ** 5 * R @ np.asarray(exact.inertia, float) @ R.T
-    return exact.volume * s ** 3, com, inertia
-
-
-def _answer_problem(ans):
-    if ans is None:
-        return "returned None"
-    if not isinstance(ans, (tuple, list)) or len(ans) not in (3, 4):
-        return f"returned {type(ans).__name__} {ans!r:.80}, not (volume, com, inertia[, claimed])"
-    try:
-        v = float(ans[0])
-        com = np.asarray(ans[1], float)
-        inertia = np.asarray(ans[2], float)
-    except (TypeError, ValueError) as exc:
-        return f"returned values that are not numbers: {exc}"
-    if com.shape != (3,) or inertia.shape != (3, 3):
-        return f"com has shape {com.shape}, inertia {inertia.shape}; expected (3,) and (3, 3)"
-    if not (math.isfinite(v) and np.all(np.isfinite(com)) and np.all(np.isfinite(inertia))):
-        return f"non-finite answer: volume {v!r}, com {com.tolist()}, inertia {inertia.tolist()}"
-    return None
-
-
-def _claims(ans):
-    c = ans[3] if len(ans) > 3 else None
-    if c is None:
-        return {}
-    if isinstance(c, dict):
-        return {k: float(c[k]) for k in ("volume", "inertia") if c.get(k) is not None}
-    return {"volume": float(c)}
-
-
-def mass_properties_certificate(recipe, backend, slack: float = 10.0,
-                                roundoff: float = 1e-14):
-    """The engine's mass properties of a one-leaf solid against the leaf table's closed form.
-
-    At every declared resolution: relative errors of volume, centre of mass (over V^(1/3)) and
-    inertia (worst entry over the largest entry of the exact tensor). Passes when
-
-    - the error falls as stated: at each level ``max error <= slack x C h^p`` (C stated, or
-      from the coarsest level's error), or below the engine's ``floor``; and
-    - every claim bounds the true error: ``|V - V0| <= claimed volume + roundoff V0`` and
-      ``max |I - I0| <= claimed inertia + roundoff max|I0|``.
-
-    Figure: the worst ratio of an error to what it is allowed (<= 1 passes). The observed
-    order (least squares of log error on log h over the levels above the floor) is in
-    ``details["observed_order"]``. Status "n/a" for a leaf without a closed form.
-    """
-    from .properties import NOT_APPLICABLE, PropertyResult, _bad_answer, _result
-    from .backends import backend_name
-    name = "mass_properties"
-    fig = "error / allowed"
-    exact = closed_form_world(recipe)
-    if exact is None:
-        return PropertyResult(name, True, 1, float("nan"), fig, "", NOT_APPLICABLE)
-    v0, com0, I0 = exact
-    b, root = recipe.build()
-    ni, nr, _, _ = b.encode()
-    c, r, _ = b.node_bound(root)
-    lo, hi = c - 1.02 * r, c + 1.02 * r
-    res = [float(x) for x in backend.resolutions]
-    decreasing = res[0] > res[-1]
-    h = [x if decreasing else 1.0 / x for x in res]
-    p = float(backend.order)
-    C = getattr(backend, "constant", None)
-    floor = float(getattr(backend, "floor", None) or DEFAULT_FLOOR)
-    size, imax = v0 ** (1.0 / 3.0), float(np.abs(I0).max())
-    levels = []
-    for x in res:
-        try:
-            ans = backend.mass_properties(ni, nr, root, lo, hi, x)
-        except Exception as exc:  # the engine's failure is the certificate's failure
-            return _bad_answer(name, fig, "max", f"mass_properties(..., {x!r}) raised "
-                               f"{type(exc).__name__}: {exc}")
-        why = _answer_problem(ans)
-        if why:
-            return _bad_answer(name, fig, "max", f"{backend_name(backend)} at resolution {x!r} "
-                               f"{why}")
-        v, com, inertia = float(ans[0]), np.asarray(ans[1], float), np.asarray(ans[2], float)
-        levels.append(dict(res=x, volume=abs(v - v0) / v0,
-                           com=float(np.linalg.norm(com - com0)) / size,
-                           inertia=float(np.abs(inertia - I0).max()) / imax,
-                           abs_volume=abs(v - v0), abs_inertia=float(np.abs(inertia - I0).max()),
-                           claims=_claims(ans)))
-    errs = [max(lv["volume"], lv["com"], lv["inertia"]) for lv in levels]
-    if C is None:
-        C = max(errs[0], floor) / h[0] ** p
-    ratios, lines = [], []
-    for lv, e, hh in zip(levels, errs, h):
-        allowed = max(slack * C * hh ** p, floor)
-        ratios.append(e / allowed)
-        line = (f"resolution {lv['res']:g}: relative errors volume {lv['volume']:.2e}, com "
-                f"{lv['com']:.2e}, inertia {lv['inertia']:.2e}; allowed {allowed:.2e}")
-        for key, true in (("volume", lv["abs_volume"]), ("inertia", lv["abs_inertia"])):
-            if key in lv["claims"]:
-                claim = lv["claims"][key]
-                scale_ = v0 if key == "volume" else imax
-                bound = claim + roundoff * scale_
-                ratios.append(true / bound if bound > 0 else math.inf)
-                line += (f"; {key} error {true:.2e} vs claimed {claim:.2e}"
-                         f"{' (CLAIM VIOLATED)' if true > bound else ''}")
-        lines.append(line)
-    above = [(math.log(hh), math.log(e)) for e, hh in zip(errs, h) if e > floor]
-    order = float(np.polyfit(*zip(*above), 1)[0]) if len(above) >= 2 else float("nan")
-    worst = max(ratios)
-    text = (f"{backend_name(backend)} (stated: relative error <= {'' if getattr(backend, 'constant', None) is not None else 'C0 x '}"
-            f"{slack:g} x {C:.3g} h^{p:g}, h = {'resolution' if decreasing else '1/resolution'}"
-            f"; floor {floor:g}; observed order {order:.2f})\n" + "\n".join(lines))
-    return _result(name, worst <= 1.0, worst, fig, "max", text, observed_order=order,
-                   stated_order=p, levels=[{k: lv[k] for k in ("res", "volume", "com",
-                                                                "inertia")} for lv in levels])

@@ -15,33 +15,27 @@ import os
 import re
 from dataclasses import dataclass
 
+from . import registry as REG
+
 __all__ = ["FORMAT", "check_report_path", "load_report", "write_report", "TOLERANCES",
            "tolerance_for", "compare", "Waiver", "load_xfails", "find_waiver"]
 
 FORMAT = "peclet-certificates/1"
-PROPERTY_NAMES = ("equation1", "sign_agreement", "distance_agreement", "quadrature_convergence",
-                  "determinism", "buffer_growth")
+# The lists below are views of the one registry (:mod:`peclet_verify.registry`).
+#: Property ids (an xfails file may name one for all of its certificates).
+PROPERTY_NAMES = REG.properties()
 #: The certificates :mod:`peclet_verify.suite` ships (they certify the backend).
-SUITE_CERTIFICATES = ("equation1 (reference rule)", "equation1 (backend claims)",
-                      "sign agreement (evaluation paths)", "sign agreement (same solid)",
-                      "distance agreement (backend vs reference)")
+SUITE_CERTIFICATES = REG.titles(scope="suite")
 #: The certificates this repository's ``properties/`` adds (they certify peclet itself).
-REPO_CERTIFICATES = ("distance agreement (program vs tree walk)", "quadrature convergence",
-                     "determinism (1 thread twice, 2 threads)", "buffer growth")
-#: The DEM family's certificates (:mod:`peclet_verify.dem_suite`, any DEM backend) and their
-#: properties (:mod:`peclet_verify.mechanics`).
-DEM_CERTIFICATES = ("determinism at one thread (DEM backend)",
-                    "determinism across threads (DEM backend)", "buffer growth (DEM backend)",
-                    "binary restitution", "slide to roll", "incline stick/slip",
-                    "free rigid body")
-DEM_PROPERTY_NAMES = ("determinism_one_thread", "determinism_across_threads", "incline",
-                      "slide_to_roll", "binary_restitution", "free_rigid_body")
+REPO_CERTIFICATES = REG.titles(scope="repo")
+#: The DEM and mechanics families' certificates (:mod:`peclet_verify.dem_suite`, any DEM
+#: backend) and their properties.
+DEM_CERTIFICATES = REG.titles(scope="dem")
+DEM_PROPERTY_NAMES = REG.properties(scope="dem")
 #: The mass-property family's certificate (:mod:`peclet_verify.mass_suite`).
-MASS_CERTIFICATES = ("mass properties (closed forms)",)
+MASS_CERTIFICATES = REG.titles(scope="mass")
 #: Names an xfails file may use: a certificate's name or a property's (all its certificates).
-KNOWN_CERTIFICATES = frozenset(PROPERTY_NAMES + SUITE_CERTIFICATES + REPO_CERTIFICATES +
-                               DEM_CERTIFICATES + DEM_PROPERTY_NAMES + MASS_CERTIFICATES +
-                               ("mass_properties",))
+KNOWN_CERTIFICATES = REG.known_names()
 
 
 class ReportFileError(ValueError):
@@ -130,19 +124,9 @@ def write_report(path, data) -> str:
 
 # ---------------------------------------------------------------------------- comparison
 #: How much worse a figure may get before ``--peclet-compare`` fails the run, by the figure's
-#: name (prefix): (factor, floor). The "badness" of a figure is its value for a figure where
-#: larger is worse, its negation for one where smaller is worse (Equation 1's slack); a run
-#: regresses when ``badness_now > factor * max(badness_before, floor)``. The floor keeps
-#: round-off (a slack of -1e-16 after 0.0) from counting.
-TOLERANCES = {
-    "rel error": (10.0, 1e-12),            # quadrature: worst relative error x10
-    "max |phi_a - phi_b|": (10.0, 1e-14),  # distance agreement: worst difference x10
-    "min slack": (10.0, 1e-12),            # Equation 1: worst violation x10
-    "sign disagreement rate": (1.0, 0.0),  # any disagreement at all is already a failure
-    "distinct state hashes": (1.0, 1.0),   # determinism: more than one hash
-    "differing contact sets": (1.0, 0.0),  # buffer growth: any
-    "error / allowed": (1.0, 1.0),         # mechanics, mass properties: over 1 already fails
-}
+#: name (prefix): (factor, floor), from :data:`peclet_verify.registry.FIGURES` (which says how
+#: the badness of a figure is judged).
+TOLERANCES = {label: (factor, floor) for label, (_, factor, floor) in REG.FIGURES.items()}
 DEFAULT_TOLERANCE = (10.0, 1e-12)
 
 

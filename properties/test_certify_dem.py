@@ -3,6 +3,7 @@ import pytest
 from hypothesis import strategies as st
 
 from peclet_verify import properties as P
+from peclet_verify import registry as REG
 from peclet_verify import strategies as pst
 
 pytestmark = pytest.mark.peclet_certify
@@ -16,7 +17,7 @@ def few():
 def test_determinism_across_threads(peclet_certificate):
     peclet_certificate(P.search(
         lambda s: P.determinism(s), pst.rigid_states((2, 12), box=((0, 0.3, 0), (3, 3, 3))),
-        name="determinism (1 thread twice, 2 threads)", settings=few(),
+        name=REG.title("determinism"), settings=few(),
         describe=lambda s: s.snippet()))
 
 
@@ -26,5 +27,5 @@ def test_buffer_growth(peclet_certificate):
         st.tuples(pst.trees(max_leaves=2, certified_only=True, transforms=False),
                   pst.capacity_sequences(max_size=4),
                   pst.rigid_states((2, 5), box=((0, 0, 0), (1.5, 1.5, 1.5)))),
-        name="buffer growth", settings=few(),
+        name=REG.title("buffer_growth"), settings=few(),
         describe=lambda a: f"{a[0]!r}\ncapacities = {a[1]!r}\n{a[2].snippet()}"))

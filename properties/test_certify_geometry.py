@@ -8,6 +8,7 @@ imports); the tree-walk one certifies peclet's flat program itself.
 import pytest
 
 from peclet_verify import properties as P
+from peclet_verify import registry as REG
 from peclet_verify import strategies as pst
 from peclet_verify.planted import TreeWalkBackend
 from peclet_verify.suite import *  # noqa: F401,F403  (the backend certificates)
@@ -19,4 +20,4 @@ def test_distance_agreement_tree_walk(peclet_certificate):
     """The flat program equals a node-by-node numpy walk of the same encoding."""
     peclet_certificate(P.search(
         lambda r: P.distance_agreement(r, None, TreeWalkBackend()),
-        pst.trees(**TREES), name="distance agreement (program vs tree walk)"))
+        pst.trees(**TREES), name=REG.title("distance_tree_walk")))

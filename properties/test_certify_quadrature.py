@@ -9,12 +9,11 @@ import math
 import pytest
 
 from peclet_verify import properties as P
+from peclet_verify import registry as REG
 from peclet_verify import strategies as pst
 from peclet_verify.profiles import SHARDS
 
 pytestmark = pytest.mark.peclet_certify
-
-CLOSED_FORM_KINDS = ("sphere", "box", "ellipsoid", "hollow_cylinder", "torus", "capsule")
 
 
 @pytest.mark.parametrize("shard", range(1, SHARDS + 1))
@@ -22,6 +21,6 @@ def test_quadrature_convergence(peclet_certificate, shard):
     share = math.ceil(P.active_settings().max_examples / SHARDS)
     peclet_certificate(P.search(
         lambda r: P.quadrature_convergence(r),
-        pst.leaves(kinds=CLOSED_FORM_KINDS),
-        name=f"quadrature convergence [shard {shard}/{SHARDS}]",
+        pst.closed_form_solids(pst.CLOSED_FORM_KINDS),
+        name=f"{REG.title('quadrature')} [shard {shard}/{SHARDS}]",
         settings=P.profile_settings(max_examples=share)))

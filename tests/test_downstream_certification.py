@@ -35,12 +35,13 @@ sys.path.insert(0, MESH)
 from meshsdf import MeshEngine  # noqa: E402
 
 
-def certify(project, tmp_path, env=None):
-    """Run ``project``'s certification under smoke with its xfails; (completed, report)."""
+def certify(project, tmp_path, env=None, args=()):
+    """Run ``project``'s certification under smoke with its xfails (and ``args``);
+    (completed, report)."""
     report = tmp_path / "report.json"
     cmd = [sys.executable, "-m", "pytest", project, "--peclet-certify", "--peclet-profile",
            "smoke", "--peclet-report", str(report), "--peclet-xfails",
-           os.path.join(project, "xfails.toml"), "-p", "no:cacheprovider", "-q"]
+           os.path.join(project, "xfails.toml"), "-p", "no:cacheprovider", "-q", *args]
     full_env = {k: v for k, v in os.environ.items() if not k.startswith("PECLET_")}
     full_env.update(env or {})
     # cwd: Hypothesis keeps its files in the working directory, not in the project
@@ -196,3 +197,106 @@ def test_upstream_geom_certification(peclet_geom_python, tmp_path):
     assert "kind 10 is not an upstream leaf" in same["counterexample"]
     assert "'half_space'" in same["counterexample"]
 
+
+
+# ---------------------------------------------------------------------------- DEM engines
+# Two more downstream projects certify DEM engines nobody here wrote, each in its own venv
+# (their own ``peclet`` or ``mujoco`` must not meet ours): the upstream wheels peclet-dem 1.1.0
+# and peclet-geom 1.0.1 (examples/downstream/upstream_dem) and MuJoCo through an adapter
+# (examples/downstream/mujoco_dem). The venvs are named by environment variables (see each
+# project's conftest.py); without them these tests skip with the reason.
+UPSTREAM_DEM = os.path.join(DOWNSTREAM, "upstream_dem")
+MUJOCO = os.path.join(DOWNSTREAM, "mujoco_dem")
+UPSTREAM_VENV, MUJOCO_VENV = "PECLET_UPSTREAM_VENV", "PECLET_MUJOCO_VENV"
+
+
+def side_venv(variable, packages):
+    """The venv directory named by ``variable``; skip (with how to make it) when absent."""
+    venv = os.environ.get(variable)
+    if not venv or not os.path.isfile(os.path.join(venv, "bin", "python")):
+        pytest.skip(f"{variable} does not name a venv with {packages} ({venv!r}); make one "
+                    f"with `python -m venv DIR && DIR/bin/pip install {packages}` and set "
+                    f"{variable}=DIR")
+    return venv
+
+
+def wheel_dem(venv):
+    from peclet_verify.dem_backends import SubprocessDemBackend, wheel_dem_child_command
+    return SubprocessDemBackend(wheel_dem_child_command(os.path.join(venv, "bin", "python")),
+                                env={"OMP_PROC_BIND": "false"}, timeout=300)
+
+
+def mujoco_dem(venv):
+    import peclet_verify.family_wire as fw
+    from peclet_verify.dem_backends import SubprocessDemBackend
+    return SubprocessDemBackend([os.path.join(venv, "bin", "python"),
+                                 os.path.join(MUJOCO, "mujoco_child.py")],
+                                env={"PECLET_VERIFY_DIR": os.path.dirname(fw.__file__)},
+                                timeout=300)
+
+
+def check_dem_report(done, report, xfails):
+    """The run exits 0, every DEM certificate is in the report, none failed without its
+    declared waiver, and every waiver is echoed with its reason."""
+    from peclet_verify.report import DEM_CERTIFICATES
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    got = verdicts(report)
+    assert set(DEM_CERTIFICATES) <= set(got), got
+    assert "failed" not in got.values(), got
+    check_waivers_echoed(report, xfails)
+    return got
+
+
+def test_mujoco_certification(tmp_path):
+    venv = side_venv(MUJOCO_VENV, "mujoco")
+    done, report = certify(MUJOCO, tmp_path, {MUJOCO_VENV: venv})
+    got = check_dem_report(done, report, os.path.join(MUJOCO, "xfails.toml"))
+    assert got["determinism at one thread (DEM backend)"] == "passed"
+    # mj_step runs on one thread: the engine declares (1,), nothing to compare
+    assert got["determinism across threads (DEM backend)"] == "unavailable"
+    assert got["slide to roll"] == "passed"
+
+
+def test_mujoco_fixed_arena_is_the_buffer_capacity_case():
+    """The shrunk counterexample of the ci run: 6 spheres poured with a contact hint of 1
+    (an arena of 22 KiB). MuJoCo cannot grow its arena: the run stops at the step that needs
+    the sixth contact, and the certificate fails saying so; ample hints run the pour."""
+    from peclet_verify import properties as P
+    from peclet_verify import strategies as pst
+    be = mujoco_dem(side_venv(MUJOCO_VENV, "mujoco"))
+    try:
+        pour = pst.Pour((0.05,) * 6, ((0, 0, 0),) * 6, ((0.0, 0.0, 0.0),) * 6, 0.0, 0.0)
+        res = P.dem_buffer_growth(be, pour, [(1, 1)])
+        ample, why = P.run_checked(be, pst.pour_scenario(pour, contact_capacity=4096))
+    finally:
+        be.close()
+    assert not res.passed and "mj_stackAlloc: out of memory" in res.counterexample
+    assert why is None and ample["contacts"].max() >= 6   # floor and neighbours touch
+
+
+def test_upstream_dem_certification(tmp_path):
+    venv = side_venv(UPSTREAM_VENV, "peclet-dem==1.1.0 peclet-geom==1.0.1")
+    # the DEM family only: the geometry one is test_upstream_geom_certification's, and the
+    # mass one asks the wheel's body_properties at n = 48 (over a minute; REPORTS.md)
+    done, report = certify(UPSTREAM_DEM, tmp_path, {UPSTREAM_VENV: venv}, ["-k", "test_dem_"])
+    got = check_dem_report(done, report, os.path.join(UPSTREAM_DEM, "xfails.toml"))
+    assert got["determinism at one thread (DEM backend)"] == "passed"
+    for name in ("determinism across threads (DEM backend)", "buffer growth (DEM backend)",
+                 "slide to roll", "free rigid body"):
+        assert got[name] == "waived", (name, got)
+
+
+@pytest.mark.parametrize("radius", [1.0, 0.5])
+def test_upstream_dem_rolls_with_a_unit_lever_arm(radius):
+    """The slide-to-roll finding: the wheel's sphere ends rolling at omega * (1 m) = v. For
+    r = 1 that is the right 5/7 v0; for r = 0.5 it stops sliding early, omega = v (not 2 v)."""
+    from peclet_verify import properties as P
+    from peclet_verify import strategies as pst
+    be = wheel_dem(side_venv(UPSTREAM_VENV, "peclet-dem==1.1.0"))
+    try:
+        res = P.slide_to_roll(be, pst.Roll(radius, 1.0, 2.0, 0.4))
+    finally:
+        be.close()
+    v, omega = res.details["v"], res.details["omega_r"] / radius
+    assert abs(omega - v) < 1e-3 * v                       # rolls without slip at arm 1 m
+    assert res.passed == (radius == 1.0), res.counterexample

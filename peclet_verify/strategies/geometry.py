@@ -1,4 +1,5 @@
-"""Hypothesis strategies for CSG trees, probe points, rigid-body states and buffer capacities.
+"""Hypothesis strategies of the geometry family: CSG trees (as recipes), leaves, transforms and
+probe points.
 
 Every tree strategy produces a :class:`TreeRecipe`: an immutable record of the public
 ``SceneBuilder`` calls that build it. A recipe is valid by construction (parameters are drawn
@@ -8,14 +9,8 @@ rejected; it shrinks towards a single leaf with an identity transform; and ``rep
 
 Conventions follow docs/architecture.md §2: phi < 0 inside, quaternions (x, y, z, w) active, a
 node's value in its parent frame is ``s * f(R^T (p - t) / s)``. Lengths are in the builder's
-unit; the default parameter ranges give solids about one unit across.
-
->>> from hypothesis import given
->>> from peclet_verify import strategies as pst
->>> @given(pst.trees(max_leaves=3))
-... def test_builds(recipe):
-...     b, root = recipe.build()
-...     assert b.num_nodes() == recipe.num_nodes
+unit; the default parameter ranges give solids about one unit across (an example of use:
+:mod:`peclet_verify.strategies`).
 """
 from __future__ import annotations
 
@@ -30,10 +25,12 @@ from hypothesis.extra import numpy as hnp
 from peclet.core.geom import LEAF_NAMES, LEAVES_BY_NAME, SceneBuilder
 from peclet.core.geom.transforms import quat_to_matrix
 
-__all__ = ["Transform", "LeafCall", "OpCall", "TreeRecipe", "RigidState", "BOUNDED_KINDS",
-           "EXACT_KINDS", "LIPSCHITZ_KINDS", "OPERATORS", "leaf_params", "leaves", "transforms",
-           "trees", "points_in_box", "points_outside_ball", "points_near_surface", "rigid_states",
-           "capacity_sequences", "unit_quaternions", "same_solid_pairs", "surface_points"]
+from .checks import _check_int, _check_range
+
+__all__ = ["Transform", "LeafCall", "OpCall", "TreeRecipe", "BOUNDED_KINDS", "EXACT_KINDS",
+           "LIPSCHITZ_KINDS", "OPERATORS", "leaf_params", "leaves", "transforms", "trees",
+           "points_in_box", "points_outside_ball", "points_near_surface", "unit_quaternions",
+           "same_solid_pairs", "surface_points"]
 
 #: Leaves with a finite enclosing ball (everything but the half-space).
 BOUNDED_KINDS = tuple(k for k in LEAF_NAMES if k != "half_space")
@@ -208,25 +205,6 @@ def _check_kinds(kinds, name="kinds", allowed=LEAF_NAMES):
     if bad:
         raise ValueError(f"{name} must be leaf kinds from {list(allowed)}, got {bad}")
     return kinds
-
-
-def _check_range(value, name, lo_min=0.0):
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a pair (lo, hi), got {value!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo_min < lo <= hi):
-        raise ValueError(f"{name} must satisfy {lo_min} < lo <= hi (finite), got {value!r}")
-    return lo, hi
-
-
-def _check_int(value, name, lo, hi=None):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ValueError(f"{name} must be an int, got {value!r}")
-    if value < lo or (hi is not None and value > hi):
-        rng = f"[{lo}, {hi}]" if hi is not None else f">= {lo}"
-        raise ValueError(f"{name} must be in {rng}, got {value}")
-    return int(value)
 
 
 # ---------------------------------------------------------------------------- leaves
@@ -515,113 +493,6 @@ def points_near_surface(recipe: TreeRecipe, n: int = 64, band: float = 0.05) -> 
         return p + (off * band)[:, None] * g
     return st.builds(place, hnp.arrays(np.float64, (n, 3), elements=st.floats(0.0, 1.0)),
                      hnp.arrays(np.float64, (n,), elements=st.floats(-1.0, 1.0)))
-
-
-# ---------------------------------------------------------------------------- DEM states
-@dataclass(frozen=True, eq=False)
-class RigidState:
-    """Rigid-body state arrays (float64): positions (n, 3), quaternions (n, 4) (x, y, z, w),
-    velocities (n, 3) and world-frame angular velocities (n, 3)."""
-
-    positions: np.ndarray
-    quaternions: np.ndarray
-    velocities: np.ndarray
-    angular_velocities: np.ndarray
-
-    @property
-    def n(self) -> int:
-        return len(self.positions)
-
-    def __repr__(self):
-        # Python float reprs round-trip exactly, so the text rebuilds the same bits
-        def a(x):
-            return f"np.array({np.asarray(x, dtype=np.float64).tolist()!r})"
-        return (f"RigidState(positions={a(self.positions)}, "
-                f"quaternions={a(self.quaternions)}, "
-                f"velocities={a(self.velocities)}, "
-                f"angular_velocities={a(self.angular_velocities)})")
-
-    def snippet(self) -> str:
-        """Runnable Python that rebuilds this state (bit for bit) as ``state``."""
-        return ("import numpy as np\nfrom peclet_verify.strategies import RigidState\n"
-                f"state = {self!r}")
-
-
-def rigid_states(n, box=((0.0, 0.0, 0.0), (4.0, 4.0, 4.0)), max_speed: float = 1.0,
-                 max_spin: float = 1.0) -> st.SearchStrategy:
-    """:class:`RigidState` of ``n`` bodies with positions in ``box=(lo, hi)`` (on a 4096-step
-    grid per axis), velocity components in [-max_speed, max_speed] and world-frame spins in
-    [-max_spin, max_spin] rad/s (2048 steps each side), unit quaternions (x, y, z, w) (axis
-    from integer components in [-256, 256], angle a multiple of pi/256).
-
-    ``n`` is an int >= 1, a pair ``(min_n, max_n)`` (best: bodies form a list Hypothesis can
-    delete from anywhere, so a failing state shrinks to its few relevant bodies), or a
-    strategy of ints >= 1 (the count is drawn first; shrinking can only drop trailing bodies).
-    Every value is drawn as an integer on its grid, so a failing state shrinks in seconds
-    towards bodies at rest at ``lo`` with identity rotations; ``repr(state)`` /
-    ``state.snippet()`` rebuilds it bit for bit.
-    """
-    lo = np.asarray(box[0], float).reshape(3)
-    hi = np.asarray(box[1], float).reshape(3)
-    if not np.all(lo <= hi):
-        raise ValueError(f"box must satisfy lo <= hi, got {box!r}")
-    for nm, v in (("max_speed", max_speed), ("max_spin", max_spin)):
-        if not (math.isfinite(v) and v >= 0):
-            raise ValueError(f"{nm} must be finite and >= 0, got {v!r}")
-
-    def grid(lo_, hi_, steps=4096):
-        # quantised values shrink in few steps (float arrays can take minutes to shrink)
-        return st.integers(0, steps).map(lambda k: lo_ + (hi_ - lo_) * k / steps)
-
-    def sym(h, steps=2048):
-        return st.integers(-steps, steps).map(lambda k: h * k / steps)
-
-    def quat(ix, iy, iz, k, steps=256):
-        nrm = math.sqrt(ix * ix + iy * iy + iz * iz)
-        ax = (1.0, 0.0, 0.0) if nrm == 0 else (ix / nrm, iy / nrm, iz / nrm)
-        half = 0.5 * math.pi * k / steps
-        s, c = math.sin(half), math.cos(half)
-        return (ax[0] * s, ax[1] * s, ax[2] * s, c)
-
-    comp = st.integers(-256, 256)
-    body = st.tuples(st.tuples(*(grid(lo[a], hi[a]) for a in range(3))),
-                     st.builds(quat, comp, comp, comp, st.integers(0, 256)),
-                     st.tuples(*(sym(max_speed) for _ in range(3))),
-                     st.tuples(*(sym(max_spin) for _ in range(3))))
-
-    def state(bodies):
-        k = len(bodies)
-        pos, quats, vel, spin = (np.array([b[j] for b in bodies], dtype=np.float64)
-                                 for j in range(4))
-        return RigidState(pos.reshape(k, 3), quats.reshape(k, 4), vel.reshape(k, 3),
-                          spin.reshape(k, 3))
-
-    if isinstance(n, st.SearchStrategy):
-        @st.composite
-        def counted(draw):
-            k = draw(n)
-            if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-                raise ValueError(f"n must draw ints >= 1, got {k!r}")
-            return state([draw(body) for _ in range(k)])
-        return counted()
-    if isinstance(n, (tuple, list)):
-        if len(n) != 2:
-            raise ValueError(f"n must be an int >= 1, a pair (min_n, max_n) or a strategy, "
-                             f"got {n!r}")
-        n_lo = _check_int(n[0], "n[0] (min_n)", 1)
-        n_hi = _check_int(n[1], "n[1] (max_n)", n_lo)
-    else:
-        n_lo = n_hi = _check_int(n, "n", 1)
-    return st.lists(body, min_size=n_lo, max_size=n_hi).map(state)
-
-
-def capacity_sequences(min_capacity: int = 1, max_capacity: int = 64, max_size: int = 6):
-    """Lists of contact-buffer capacities (ints in [min_capacity, max_capacity]) to apply in
-    order; shrinks towards one capacity of ``min_capacity``."""
-    lo = _check_int(min_capacity, "min_capacity", 1)
-    hi = _check_int(max_capacity, "max_capacity", lo)
-    size = _check_int(max_size, "max_size", 1)
-    return st.lists(st.integers(lo, hi), min_size=1, max_size=size)
 
 
 st.register_type_strategy(TreeRecipe, trees())

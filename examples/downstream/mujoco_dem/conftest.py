@@ -1,0 +1,47 @@
+"""The entry a downstream project needs: the hook that hands peclet the DEM engine to certify.
+
+The engine is MuJoCo (``pip install mujoco``), spoken to through the adapter in
+``mujoco_child.py`` (the page's API on MuJoCo's MJCF models) in a child process of its own
+venv. PECLET_MUJOCO_VENV names that venv (a directory with ``bin/python``), e.g.::
+
+    python -m venv /tmp/mjvenv && /tmp/mjvenv/bin/pip install mujoco
+    PECLET_MUJOCO_VENV=/tmp/mjvenv pytest --peclet-certify --peclet-xfails xfails.toml
+
+Without it every certificate is skipped, with the reason saying so.
+"""
+import os
+
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+VENV_VARIABLE = "PECLET_MUJOCO_VENV"
+
+
+def _python():
+    """The side venv's interpreter, or None with the reason."""
+    venv = os.environ.get(VENV_VARIABLE)
+    if not venv:
+        return None, (f"{VENV_VARIABLE} is not set: create the venv with `python -m venv "
+                      f"/tmp/mjvenv && /tmp/mjvenv/bin/pip install mujoco` and set "
+                      f"{VENV_VARIABLE}=/tmp/mjvenv")
+    python = os.path.join(venv, "bin", "python")
+    if not os.path.isfile(python):
+        return None, f"{VENV_VARIABLE}={venv}: no interpreter at {python}"
+    return python, None
+
+
+def pytest_collection_modifyitems(config, items):
+    python, why = _python()
+    if python is None:
+        skip = pytest.mark.skip(reason=f"MuJoCo not available: {why}")
+        for item in items:
+            item.add_marker(skip)
+
+
+def pytest_peclet_make_dem_backend(config):
+    import peclet_verify.family_wire
+    from peclet_verify.dem_backends import SubprocessDemBackend
+    python, _ = _python()
+    wire_dir = os.path.dirname(os.path.abspath(peclet_verify.family_wire.__file__))
+    return SubprocessDemBackend([python, os.path.join(HERE, "mujoco_child.py")],
+                                env={"PECLET_VERIFY_DIR": wire_dir}, timeout=600.0)

@@ -1,0 +1,69 @@
+"""The entries a downstream project needs: hooks that hand peclet the engines to certify.
+
+The engines are the upstream wheels ``peclet-dem`` 1.1.0 (DEM) and ``peclet-geom`` 1.0.1
+(geometry and mass properties). Both ship a top-level ``peclet`` package of their own, which
+must not meet the one under test, so they live in their own virtual environment and are
+served out of process (numpy arrays over a pipe), each through its dialect adapter in
+peclet_verify (``peclet_dem_wheel_child``, ``peclet_geom_child``, ``peclet_geom_mass_child``).
+
+PECLET_UPSTREAM_VENV names that environment (a directory with ``bin/python``), e.g.::
+
+    python -m venv /tmp/updem && /tmp/updem/bin/pip install peclet-dem==1.1.0 peclet-geom==1.0.1
+    PECLET_UPSTREAM_VENV=/tmp/updem pytest --peclet-certify
+
+Without it every certificate is skipped, with the reason saying so.
+"""
+import os
+
+import pytest
+
+VENV_VARIABLE = "PECLET_UPSTREAM_VENV"
+#: Seconds each answer of a wheel may take (a DEM run of a few thousand steps in float32).
+TIMEOUT = 600.0
+
+
+def _python():
+    """The side venv's interpreter, or None with the reason."""
+    venv = os.environ.get(VENV_VARIABLE)
+    if not venv:
+        return None, (f"{VENV_VARIABLE} is not set: create the venv with `python -m venv "
+                      f"/tmp/updem && /tmp/updem/bin/pip install peclet-dem==1.1.0 "
+                      f"peclet-geom==1.0.1` and set {VENV_VARIABLE}=/tmp/updem")
+    python = os.path.join(venv, "bin", "python")
+    if not os.path.isfile(python):
+        return None, f"{VENV_VARIABLE}={venv}: no interpreter at {python}"
+    return python, None
+
+
+def pytest_collection_modifyitems(config, items):
+    python, why = _python()
+    if python is None:
+        skip = pytest.mark.skip(reason=f"upstream wheels not available: {why}")
+        for item in items:
+            item.add_marker(skip)
+
+
+def _env():
+    # the wheel's Kokkos prints a warning at start-up without it (stderr, harmless)
+    return {"OMP_PROC_BIND": "false"}
+
+
+def pytest_peclet_make_backend(config):
+    from peclet_verify.backends import SubprocessBackend, peclet_geom_child_command
+    python, _ = _python()
+    return SubprocessBackend(peclet_geom_child_command(python), name="peclet-geom 1.0.1",
+                             env=_env(), timeout=TIMEOUT)
+
+
+def pytest_peclet_make_dem_backend(config):
+    from peclet_verify.dem_backends import SubprocessDemBackend, wheel_dem_child_command
+    python, _ = _python()
+    return SubprocessDemBackend(wheel_dem_child_command(python), name="peclet-dem 1.1.0",
+                                env=_env(), timeout=TIMEOUT)
+
+
+def pytest_peclet_make_mass_backend(config):
+    from peclet_verify.mass_backends import SubprocessMassBackend, wheel_mass_child_command
+    python, _ = _python()
+    return SubprocessMassBackend(wheel_mass_child_command(python), name="peclet-geom 1.0.1",
+                                 env=_env(), timeout=TIMEOUT)

@@ -1,0 +1,151 @@
+"""The one list of peclet's certificates: each registered once with its family, its property id,
+its title (the name a report lists) and the label of its worst figure. Stdlib only: the plugin
+reads it at configure time, before the engine is imported.
+
+Everything that names certificates derives from here: the report's lists and the names an
+xfails file may use (:mod:`peclet_verify.report`), the titles the suites search under
+(:mod:`peclet_verify.suite`, :mod:`peclet_verify.dem_suite`, :mod:`peclet_verify.mass_suite`,
+``properties/``) and the figure labels the properties report (:func:`figure`).
+
+Families: ``geometry`` (Equation 1, sign and distance agreement), ``mass properties``
+(quadrature against the closed forms of the leaf table), ``dem`` (determinism, contact
+buffers) and ``mechanics`` (closed-form mechanics of any DEM engine). Scopes say what a
+certificate judges: ``suite`` an engine plugged in as a geometry backend, ``repo`` peclet
+itself, ``dem`` a DEM backend, ``mass`` a mass-property backend.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Certificate", "FAMILIES", "SCOPES", "FIGURES", "CERTIFICATES", "certificate",
+           "title", "titles", "properties", "figure", "known_names"]
+
+FAMILIES = ("geometry", "mass properties", "dem", "mechanics")
+SCOPES = ("suite", "repo", "dem", "mass")
+
+#: Worst-figure label -> (direction, compare factor, compare floor). Direction "max": larger
+#: is worse; "min": smaller is worse. ``--peclet-compare`` fails a run when the figure's
+#: badness (its value, negated for "min") exceeds factor x max(badness before, floor); the
+#: floor keeps round-off (a slack of -1e-16 after 0.0) from counting. A property's reported
+#: figure starts with its label (the quadrature adds the quantity and the tolerance).
+FIGURES = {
+    "min slack": ("min", 10.0, 1e-12),                # Equation 1: worst violation x10
+    "sign disagreement rate": ("max", 1.0, 0.0),      # any disagreement is already a failure
+    "max |phi_a - phi_b|": ("max", 10.0, 1e-14),      # distance agreement: worst x10
+    "rel error": ("max", 10.0, 1e-12),                # quadrature, slide to roll: worst x10
+    "distinct state hashes": ("max", 1.0, 1.0),       # determinism: more than one hash
+    "differing contact sets": ("max", 1.0, 0.0),      # buffer growth: any
+    "error / allowed": ("max", 1.0, 1.0),             # over 1 already fails
+    "|ratio - e|": ("max", 10.0, 1e-12),              # binary restitution: worst x10
+}
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """One certificate: ``key`` (how code refers to it), ``family`` (:data:`FAMILIES`),
+    ``scope`` (:data:`SCOPES`), ``prop`` (the property it searches, the name of its
+    :class:`~peclet_verify.properties.PropertyResult`), ``title`` (its name in reports) and
+    ``figure`` (its worst-figure label, a key of :data:`FIGURES`)."""
+
+    key: str
+    family: str
+    scope: str
+    prop: str
+    title: str
+    figure: str
+
+    def __post_init__(self):
+        if self.family not in FAMILIES or self.scope not in SCOPES or \
+                self.figure not in FIGURES:
+            raise ValueError(f"certificate {self.key!r}: family {self.family!r}, scope "
+                             f"{self.scope!r} or figure {self.figure!r} is not registered")
+
+
+def _c(*args):
+    return Certificate(*args)
+
+
+#: Every certificate, in report order.
+CERTIFICATES = (
+    _c("equation1_reference", "geometry", "suite", "equation1", "equation1 (reference rule)",
+       "min slack"),
+    _c("equation1_backend", "geometry", "suite", "equation1", "equation1 (backend claims)",
+       "min slack"),
+    _c("sign_paths", "geometry", "suite", "sign_agreement",
+       "sign agreement (evaluation paths)", "sign disagreement rate"),
+    _c("sign_same_solid", "geometry", "suite", "sign_agreement", "sign agreement (same solid)",
+       "sign disagreement rate"),
+    _c("distance_backend", "geometry", "suite", "distance_agreement",
+       "distance agreement (backend vs reference)", "max |phi_a - phi_b|"),
+    _c("distance_tree_walk", "geometry", "repo", "distance_agreement",
+       "distance agreement (program vs tree walk)", "max |phi_a - phi_b|"),
+    _c("quadrature", "mass properties", "repo", "quadrature_convergence",
+       "quadrature convergence", "rel error"),
+    _c("determinism", "dem", "repo", "determinism", "determinism (1 thread twice, 2 threads)",
+       "distinct state hashes"),
+    _c("buffer_growth", "dem", "repo", "buffer_growth", "buffer growth",
+       "differing contact sets"),
+    _c("dem_determinism_one_thread", "dem", "dem", "determinism_one_thread",
+       "determinism at one thread (DEM backend)", "distinct state hashes"),
+    _c("dem_determinism_across_threads", "dem", "dem", "determinism_across_threads",
+       "determinism across threads (DEM backend)", "distinct state hashes"),
+    _c("dem_buffer_growth", "dem", "dem", "buffer_growth", "buffer growth (DEM backend)",
+       "differing contact sets"),
+    _c("binary_restitution", "mechanics", "dem", "binary_restitution", "binary restitution",
+       "|ratio - e|"),
+    _c("slide_to_roll", "mechanics", "dem", "slide_to_roll", "slide to roll", "rel error"),
+    _c("incline", "mechanics", "dem", "incline", "incline stick/slip", "error / allowed"),
+    _c("free_rigid_body", "mechanics", "dem", "free_rigid_body", "free rigid body",
+       "error / allowed"),
+    _c("mass_closed_forms", "mass properties", "mass", "mass_properties",
+       "mass properties (closed forms)", "error / allowed"),
+)
+
+_BY_KEY = {c.key: c for c in CERTIFICATES}
+_FIGURE_OF_PROP = {}
+for _cert in CERTIFICATES:
+    if _FIGURE_OF_PROP.setdefault(_cert.prop, _cert.figure) != _cert.figure:
+        raise ValueError(f"property {_cert.prop!r} is registered with two figures")
+if len(_BY_KEY) != len(CERTIFICATES) or \
+        len({c.title for c in CERTIFICATES}) != len(CERTIFICATES):
+    raise ValueError("certificate keys and titles must be unique")
+
+
+def certificate(key: str) -> Certificate:
+    """The certificate registered under ``key`` (KeyError naming the known keys otherwise)."""
+    try:
+        return _BY_KEY[key]
+    except KeyError:
+        raise KeyError(f"no certificate {key!r}; registered: {', '.join(_BY_KEY)}") from None
+
+
+def title(key: str) -> str:
+    """The report name of certificate ``key``."""
+    return certificate(key).title
+
+
+def titles(scope=None, family=None) -> tuple:
+    """Titles of the certificates of ``scope`` and/or ``family`` (all by default), in order."""
+    return tuple(c.title for c in CERTIFICATES
+                 if scope in (None, c.scope) and family in (None, c.family))
+
+
+def properties(scope=None, family=None) -> tuple:
+    """Property ids of the certificates of ``scope`` and/or ``family``, each once, in order."""
+    return tuple(dict.fromkeys(c.prop for c in CERTIFICATES
+                               if scope in (None, c.scope) and family in (None, c.family)))
+
+
+def figure(prop: str) -> str:
+    """The worst-figure label of property ``prop`` (one per property)."""
+    try:
+        return _FIGURE_OF_PROP[prop]
+    except KeyError:
+        raise KeyError(f"no property {prop!r}; registered: {', '.join(_FIGURE_OF_PROP)}") \
+            from None
+
+
+def known_names() -> frozenset:
+    """Every name an xfails file may use: a certificate's title, or a property id (all the
+    certificates of that property)."""
+    return frozenset(titles() + properties())
