@@ -4,6 +4,7 @@
     peclet pack ...        any element into any container (peclet.cli.pack)
     peclet ensemble ...    many packs at once on Dask (peclet.cli.ensemble)
     peclet drum ...        a rotating drum: dynamic angle and flow regime (peclet.cli.drum)
+    peclet flow ...        permeability of a frozen pack, lattice Boltzmann (peclet.cli.flow)
     peclet stir ...        a stirred column: Lacey mixing index (peclet.cli.stir)
 
 Each subcommand module exposes ``add_parser(subparsers)`` (registers its options and sets
@@ -23,7 +24,7 @@ import sys
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
 #: Modules (relative to this package) that each add one subcommand.
-SUBCOMMANDS = ("pall_ring", "ensemble", "pack", "drum", "stir")
+SUBCOMMANDS = ("pall_ring", "ensemble", "pack", "drum", "stir", "flow")
 
 
 #: A token that is a negative number (argparse alone takes only -1 and -.5 for one).

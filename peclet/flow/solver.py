@@ -1,0 +1,427 @@
+"""Steady D3Q19 lattice-Boltzmann flow on the fluid nodes of a :class:`LatticeGeometry`.
+
+Lattice units (cell 1, step 1, rho0 = 1). One step, per fluid node, in one kernel (pull):
+
+1. **stream**: ``f_i(x) = f*_i(x - c_i)`` along uncut links; on a cut link (wall at fraction
+   q of the way from x towards x - c_i) Bouzidi, Firdaouss & Lallemand's (2001) linear
+   interpolated bounce-back, with ``ib`` the opposite of ``i`` and ``x_f = x + c_i``:
+   ``q < 1/2: f_i = 2q f*_ib(x) + (1 - 2q) f*_ib(x_f)``;
+   ``q >= 1/2: f_i = f*_ib(x) / (2q) + (1 - 1/(2q)) f*_i(x)``.
+   Where x_f is not a fluid node reachable by an uncut link (a gap of one cell), q < 1/2
+   falls back to halfway bounce-back ``f_i = f*_ib(x)`` (counted in ``fallback_links``);
+2. **mass correction**: interpolated bounce-back does not conserve mass, and in a closed
+   periodic domain the drift accumulates; the mass lost in the previous step is put back
+   evenly, ``f_i += w_i * delta`` on every node (no momentum);
+3. **moments**: rho = sum f, j = sum f c + F/2 (F the body force density, rho0 g), u = j/rho0
+   (the incompressible equilibrium of He & Luo, so a steady Stokes field is independent of
+   the density variations);
+4. **TRT collision** (Ginzburg): symmetric and antisymmetric parts relax with omega+ and
+   omega-; ``Lambda = (1/omega+ - 1/2)(1/omega- - 1/2) = 3/16`` by default; Guo's forcing
+   split into its symmetric and antisymmetric parts, each with its own (1 - omega/2).
+
+The node loop runs over blocks of nodes in parallel; each node writes only its own slots and
+each block its own partial sums of rho and j, summed serially in block order afterwards, so
+the result is the same bits at any Numba thread count.
+
+**Convergence** (stated): every ``check_every`` steps the superficial (Darcy) velocity U (sum
+of u over fluid nodes / all cells) is compared with the previous check. With
+``r = |U_k - U_(k-1)| / |U_k|`` and the ratio ``rho_k = r_k / r_(k-1)`` of successive changes,
+the remaining change of a geometric approach is ``r_k rho_k / (1 - rho_k)``; the run stops
+when both ``r_k`` and that estimate are below ``tol`` (default 1e-6 relative).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit, prange
+
+from peclet.core.validation import (PecletArgumentError, check_array, check_choice, check_float,
+                                    check_int)
+
+from .geometry import LatticeGeometry
+from .lattice import C, MAGIC_DEFAULT, OPP, Q, W, trt_rates
+
+__all__ = ["FlowResult", "solve", "BLOCK"]
+
+#: Nodes per block of the fixed-order reduction (independent of the thread count).
+BLOCK = 2048
+
+_CX = np.ascontiguousarray(C[:, 0].astype(np.float64))
+_CY = np.ascontiguousarray(C[:, 1].astype(np.float64))
+_CZ = np.ascontiguousarray(C[:, 2].astype(np.float64))
+
+
+@njit(cache=True, inline="always")
+def _gather(n, fa, nb, lc, ld, ln, la, lb, nm, f):
+    """Pre-collision populations of node n into f (19,), from post-collision fa (19, N):
+    streamed along uncut links, and on cut link k the combination
+    sum_m lc[k, m] * fa[ld[k, m], ln[k, m]] + la[k] * nm[k] + lb[k] of the wall rule (see
+    :func:`link_table`; nm[k] is n-_i of the node at the previous step)."""
+    for i in range(19):
+        s = nb[i, n]
+        if s >= 0:
+            f[i] = fa[i, s]
+        else:
+            k = -1 - s
+            f[i] = (lc[k, 0] * fa[ld[k, 0], ln[k, 0]] + lc[k, 1] * fa[ld[k, 1], ln[k, 1]]
+                    + lc[k, 2] * fa[ld[k, 2], ln[k, 2]] + la[k] * nm[k] + lb[k])
+
+
+@njit(cache=True, parallel=True)
+def _step(fa, fb, nb, lc, ld, ln, la, lb, nm, opp, cx, cy, cz, w, om_p, om_m, fx, fy, fz, delta, sums):
+    """One stream + correct + collide step from fa into fb; sums[b] = (rho, jx, jy, jz) of
+    block b after streaming (j including F/2)."""
+    n = fa.shape[1]
+    nblk = sums.shape[0]
+    for b in prange(nblk):
+        f = np.empty(19)
+        srho = 0.0
+        sjx = 0.0
+        sjy = 0.0
+        sjz = 0.0
+        for node in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+            _gather(node, fa, nb, lc, ld, ln, la, lb, nm, f)
+            rho = 0.0
+            jx = 0.0
+            jy = 0.0
+            jz = 0.0
+            for i in range(19):
+                f[i] += w[i] * delta
+                rho += f[i]
+                jx += f[i] * cx[i]
+                jy += f[i] * cy[i]
+                jz += f[i] * cz[i]
+            ux = jx + 0.5 * fx
+            uy = jy + 0.5 * fy
+            uz = jz + 0.5 * fz
+            srho += rho
+            sjx += ux
+            sjy += uy
+            sjz += uz
+            uu = ux * ux + uy * uy + uz * uz
+            uf = ux * fx + uy * fy + uz * fz
+            # the node's own cut links keep n-_i for next step's parabolic correction
+            for i in range(1, 19):
+                s = nb[i, node]
+                if s < 0:
+                    cu = cx[i] * ux + cy[i] * uy + cz[i] * uz
+                    nm[-1 - s] = 0.5 * (f[i] - f[opp[i]]) - 3.0 * w[i] * cu
+            # rest population: symmetric only
+            e0 = w[0] * (rho - 1.5 * uu)
+            s0 = w[0] * (-3.0 * uf)
+            fb[0, node] = f[0] - om_p * (f[0] - e0) + (1.0 - 0.5 * om_p) * s0
+            for i in range(1, 19, 2):
+                j = i + 1
+                cu = cx[i] * ux + cy[i] * uy + cz[i] * uz
+                cf = cx[i] * fx + cy[i] * fy + cz[i] * fz
+                ep = w[i] * (rho + 4.5 * cu * cu - 1.5 * uu)
+                em = w[i] * 3.0 * cu
+                sp = w[i] * (9.0 * cu * cf - 3.0 * uf)
+                sm = w[i] * 3.0 * cf
+                fp = 0.5 * (f[i] + f[j])
+                fm = 0.5 * (f[i] - f[j])
+                cp = -om_p * (fp - ep) + (1.0 - 0.5 * om_p) * sp
+                cm = -om_m * (fm - em) + (1.0 - 0.5 * om_m) * sm
+                fb[i, node] = f[i] + cp + cm
+                fb[j, node] = f[j] + cp - cm
+        sums[b, 0] = srho
+        sums[b, 1] = sjx
+        sums[b, 2] = sjy
+        sums[b, 3] = sjz
+
+
+@njit(cache=True, parallel=True)
+def _macro(fa, nb, lc, ld, ln, la, lb, nm, cx, cy, cz, fx, fy, fz, rho_out, u_out):
+    """rho and u = sum f c + F/2 (rho0 = 1) of every node after streaming from fa."""
+    n = fa.shape[1]
+    nblk = (n + BLOCK - 1) // BLOCK
+    for b in prange(nblk):
+        f = np.empty(19)
+        for node in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+            _gather(node, fa, nb, lc, ld, ln, la, lb, nm, f)
+            rho = 0.0
+            jx = 0.0
+            jy = 0.0
+            jz = 0.0
+            for i in range(19):
+                rho += f[i]
+                jx += f[i] * cx[i]
+                jy += f[i] * cy[i]
+                jz += f[i] * cz[i]
+            rho_out[node] = rho
+            u_out[node, 0] = jx + 0.5 * fx
+            u_out[node, 1] = jy + 0.5 * fy
+            u_out[node, 2] = jz + 0.5 * fz
+
+
+@njit(cache=True, parallel=True)
+def _link_momentum(fa, nb, lc, ld, ln, la, lb, nm, opp, cx, cy, cz, lnode, ldir, out):
+    """Momentum given to the wall per step on each cut link (momentum exchange): the
+    population leaving towards the wall, f*_ib(x), minus the one coming back, f_i(x), both
+    along c_ib = -c_i. out (K, 3)."""
+    k_all = lnode.shape[0]
+    for k in prange(k_all):
+        f = np.empty(19)
+        node = lnode[k]
+        i = ldir[k]
+        _gather(node, fa, nb, lc, ld, ln, la, lb, nm, f)
+        tot = fa[opp[i], node] + f[i]
+        out[k, 0] = -cx[i] * tot
+        out[k, 1] = -cy[i] * tot
+        out[k, 2] = -cz[i] * tot
+
+
+@dataclass
+class FlowResult:
+    """A converged (or stopped) steady flow, lattice units (cell 1, step 1, rho0 = 1).
+
+    u (N, 3) node velocities (including F/2), rho (N,) densities, U (3,) superficial velocity
+    (sum of u over all cells / cells), force (3,) body force density, nu viscosity, magic,
+    steps taken, converged, residual (last relative change of U between checks), tail (its
+    geometric remaining-change estimate), history (check step, U along the force) pairs,
+    seconds (stepping wall time), mlups (fluid node updates per second / 1e6), link_force
+    (K, 3) momentum given to the wall per step by each cut link, fallback_links.
+    """
+
+    geometry: LatticeGeometry
+    u: np.ndarray
+    rho: np.ndarray
+    U: np.ndarray
+    force: np.ndarray
+    nu: float
+    magic: float
+    steps: int
+    converged: bool
+    residual: float
+    tail: float
+    seconds: float
+    mlups: float
+    link_force: np.ndarray
+    fallback_links: int
+    history: list = field(default_factory=list)
+
+    @property
+    def mass_drift(self) -> float:
+        """Relative deviation of the total mass from its start (after the correction)."""
+        return float(self.rho.sum() / self.geometry.n_fluid - 1.0)
+
+
+SCHEMES = ("linear", "quadratic", "bouzidi")
+
+
+def _correction(q, tp, tm, rule):
+    """(alpha, beta) of the parabolic correction ``alpha n-_i(x) + beta S-_i`` for ``rule``
+    (one of "lin_lo", "lin_hi", "quad_lo", "quad_hi", "bb"); tp, tm the TRT relaxation times.
+
+    Derived here (not copied): the steady TRT solution on one link pair for a velocity
+    U0 + U1 s + U2 s^2 along the link at constant density, with any body force, is solved
+    exactly; the rule's value minus the exact incoming population, required to vanish for
+    every U1, U2, F with u = 0 at the wall, is alpha n- + beta S-.
+    """
+    d = tm * (2.0 * tp - 1.0)
+    if rule == "lin_lo":
+        return (-2.0 * (q * q + 2.0 * q * tp - q - 2.0 * tm * tp + tm) / d,
+                q * (2.0 * tm - 1.0) * (q + 2.0 * tp - 1.0) / d)
+    if rule == "lin_hi":
+        return (-(q * q - 2.0 * q * tp + q - 2.0 * tm * tp + tm + 2.0 * tp - 1.0) / (q * d),
+                (2.0 * tm - 1.0) * (q * q - 2.0 * q * tp + q + 2.0 * tp - 1.0) / (2.0 * q * d))
+    if rule == "quad_lo":
+        return (2.0 * (q * q - 2.0 * q * tp + 2.0 * tm * tp - tm) / d,
+                -q * (q - 2.0 * tp) * (2.0 * tm - 1.0) / d)
+    if rule == "quad_hi":
+        e = q * (2.0 * q + 1.0) * d
+        return (2.0 * (q * q + 2.0 * q * tp - 2.0 * q + 2.0 * tm * tp - tm - 2.0 * tp + 1.0) / e,
+                -(q - 1.0) * (2.0 * tm - 1.0) * (q + 2.0 * tp - 1.0) / e)
+    return (-(2.0 * q * q - 4.0 * tm * tp + 2.0 * tm + 2.0 * tp - 1.0) / d,
+            (2.0 * tm - 1.0) * (2.0 * q * q + 2.0 * tp - 1.0) / (2.0 * d))
+
+
+def link_table(geo, scheme="linear", omegas=(1.0, 1.0), force=(0.0, 0.0, 0.0)):
+    """The wall rule of every cut link: (lc (K, 3) float64, ld (K, 3) int64 populations,
+    ln (K, 3) int64 nodes, la (K,), lb (K,)), so that the population pulled on link k is
+    ``sum_m lc[k, m] * f*[ld[k, m], ln[k, m]] + la[k] * n-_i(x) + lb[k]`` with f* the
+    post-collision values and n-_i(x) the antisymmetric non-equilibrium part of the pulled
+    population at its node in the previous step.
+
+    With i the pulled population, o its opposite (heading to the wall), q the wall fraction,
+    x the node, x_f = x + c_i and x_ff = x + 2 c_i, the interpolation (Bouzidi, Firdaouss &
+    Lallemand 2001, Lagrange interpolation along the link of the population that reflects):
+
+    - linear, q < 1/2: 2q f*_o(x) + (1-2q) f*_o(x_f);
+      q >= 1/2: f*_o(x)/(2q) + (1-1/(2q)) f*_i(x);
+    - quadratic, q < 1/2: q(1+2q) f*_o(x) + (1-4q^2) f*_o(x_f) - q(1-2q) f*_o(x_ff);
+      q >= 1/2: f*_o(x)/(q(2q+1)) + (2q-1)/q f*_i(x) + (1-2q)/(1+2q) f*_i(x_f).
+
+    "linear" and "quadratic" add a parabolic correction ``alpha(q) n-_i(x) + beta(q) S-_i``
+    (S-_i = 3 w_i c_i.F, the antisymmetric force term) that makes the rule exact for a
+    velocity parabolic along the link at uniform density under TRT, for any q, viscosity and
+    magic parameter (see :func:`_correction`); "bouzidi" is the plain linear rule (second
+    order, its error grows with the magic parameter and q). Where a node the stencil needs
+    is missing (solid, or behind another cut link) the quadratic rule falls back to the
+    linear one, and the linear one for q < 1/2 without x_f to bounce-back from the node
+    itself, f*_o(x), with its own correction (counted by :func:`fallback_counts`).
+    """
+    scheme = check_choice("scheme", scheme, SCHEMES)
+    tp, tm = 1.0 / omegas[0], 1.0 / omegas[1]
+    q = np.asarray(geo.link_q, np.float64)
+    i = np.asarray(geo.link_dir, np.int64)
+    o = OPP[i]
+    x = np.asarray(geo.link_node, np.int64)
+    xf = np.asarray(geo.link_ff, np.int64)
+    xff = np.asarray(geo.link_fff, np.int64)
+    k = len(q)
+    lc = np.zeros((k, 3))
+    ld = np.zeros((k, 3), np.int64)
+    ln = np.zeros((k, 3), np.int64)
+    la = np.zeros(k)
+    beta = np.zeros(k)
+    ld[:] = o[:, None]
+    ln[:] = x[:, None]
+    lo = q < 0.5
+    quad = scheme == "quadratic"
+
+    def rule(m, name, coef, dirs, nodes):
+        for c in range(len(coef)):
+            lc[m, c] = coef[c]
+            ld[m, c] = dirs[c][m] if isinstance(dirs[c], np.ndarray) else dirs[c]
+            ln[m, c] = nodes[c][m]
+        if scheme != "bouzidi":
+            la[m], beta[m] = _correction(q[m], tp, tm, name)
+
+    m = ~lo
+    qq = q[m]
+    rule(m, "lin_hi", (1.0 / (2.0 * qq), 1.0 - 1.0 / (2.0 * qq)), (o, i), (x, x))
+    m = lo & (xf >= 0)
+    qq = q[m]
+    rule(m, "lin_lo", (2.0 * qq, 1.0 - 2.0 * qq), (o, o), (x, xf))
+    m = lo & (xf < 0)
+    rule(m, "bb", (np.ones(int(m.sum())),), (o,), (x,))
+    if quad:
+        m = lo & (xff >= 0)
+        qq = q[m]
+        rule(m, "quad_lo", (qq * (1.0 + 2.0 * qq), 1.0 - 4.0 * qq * qq, -qq * (1.0 - 2.0 * qq)),
+             (o, o, o), (x, xf, xff))
+        m = ~lo & (xf >= 0)
+        qq = q[m]
+        rule(m, "quad_hi", (1.0 / (qq * (2.0 * qq + 1.0)), (2.0 * qq - 1.0) / qq,
+                            (1.0 - 2.0 * qq) / (1.0 + 2.0 * qq)), (o, i, i), (x, x, xf))
+    F = np.asarray(force, np.float64)
+    lb = beta * 3.0 * W[i] * (C[i] @ F)
+    return lc, ld, ln, la, lb
+
+
+def fallback_counts(geo, scheme="linear"):
+    """{"linear": links where the quadratic stencil was incomplete, "bounce_back": links on
+    bounce-back from the node itself} for ``scheme``."""
+    q, xf, xff = geo.link_q, geo.link_ff, geo.link_fff
+    half = int(np.count_nonzero((q < 0.5) & (xf < 0)))
+    if scheme != "quadratic":
+        return {"linear": 0, "bounce_back": half}
+    lin = int(np.count_nonzero(((q < 0.5) & (xf >= 0) & (xff < 0)) | ((q >= 0.5) & (xf < 0))))
+    return {"linear": lin, "bounce_back": half}
+
+
+def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme="linear",
+          tol=1e-6,
+          max_steps=200_000, check_every=None, progress=None, min_steps=None):
+    """Drive the fluid of ``geo`` by a uniform body force to a steady state.
+
+    force: (3,) body force per unit volume in lattice units (= rho0 g, rho0 = 1; a pressure
+    gradient dP/dx = -F). nu: kinematic viscosity (lattice). magic: TRT product Lambda
+    (3/16 by default). tol: relative convergence tolerance of the superficial velocity (see the
+    module docstring). max_steps: a stop (``converged`` False). check_every: steps between
+    convergence checks (default: a tenth of the viscous time of the largest box side, between
+    20 and 500). progress: an object with ``update(n)`` (e.g. peclet.packing.progress.Progress)
+    or None. Returns a :class:`FlowResult`.
+    """
+    if not isinstance(geo, LatticeGeometry):
+        raise PecletArgumentError("geo", "a peclet.flow.geometry.LatticeGeometry", geo)
+    F = check_array("force", force, (3,))
+    if not np.any(F != 0):
+        raise PecletArgumentError("force", "a non-zero body force (3,)", F.tolist())
+    nu = check_float("nu", nu, 1e-4, 10.0)
+    om_p, om_m = trt_rates(nu, magic)
+    tol = check_float("tol", tol, 0.0, 1.0, lo_open=True)
+    max_steps = check_int("max_steps", max_steps, 1)
+    if check_every is None:
+        side = max(geo.grid.dims)
+        check_every = int(min(500, max(20, 0.1 * side * side * 0.05 / nu)))
+    check_every = check_int("check_every", check_every, 1)
+    min_steps = 3 * check_every if min_steps is None else check_int("min_steps", min_steps, 0)
+    n = geo.n_fluid
+    nb = np.ascontiguousarray(geo.nb)
+    lc, ld, ln, la, lb = link_table(geo, scheme, (om_p, om_m), F)
+    nm = np.zeros(len(lc))
+    fa = np.empty((Q, n))
+    fa[:] = W[:, None]
+    fb = np.empty_like(fa)
+    nblk = (n + BLOCK - 1) // BLOCK
+    sums = np.zeros((nblk, 4))
+    w = W.copy()
+    fx, fy, fz = (float(v) for v in F)
+    mass0 = float(n)
+    delta = 0.0
+    cells = geo.grid.n_cells
+    fdir = F / np.linalg.norm(F)
+    hist = []
+    prev_U = None
+    prev_r = None
+    r = tail = math.inf
+    converged = False
+    steps = 0
+    t0 = time.perf_counter()
+    while steps < max_steps:
+        _step(fa, fb, nb, lc, ld, ln, la, lb, nm, OPP, _CX, _CY, _CZ, w, om_p, om_m, fx, fy, fz, delta, sums)
+        fa, fb = fb, fa
+        steps += 1
+        tot = sums.sum(axis=0) if nblk < 2 else _ordered_sum(sums)
+        delta = (mass0 - tot[0]) / n
+        if progress is not None:
+            progress.update(1)
+        if steps % check_every == 0:
+            U = tot[1:] / cells
+            if not np.all(np.isfinite(U)):
+                raise FloatingPointError(f"the flow diverged at step {steps} (U = {U}); "
+                                         "lower the force or raise nu")
+            Uf = float(U @ fdir)
+            hist.append((steps, Uf))
+            if prev_U is not None and Uf != 0.0:
+                r = abs(Uf - prev_U) / abs(Uf)
+                ratio = r / prev_r if prev_r else 1.0
+                tail = r * ratio / (1.0 - ratio) if ratio < 1.0 else math.inf
+                if r < tol and tail < tol and steps >= min_steps:
+                    converged = True
+                    break
+                prev_r = r
+            prev_U = Uf
+    seconds = time.perf_counter() - t0
+    rho = np.empty(n)
+    u = np.empty((n, 3))
+    _macro(fa, nb, lc, ld, ln, la, lb, nm, _CX, _CY, _CZ, fx, fy, fz, rho, u)
+    lf = np.empty((len(lc), 3))
+    _link_momentum(fa, nb, lc, ld, ln, la, lb, nm, OPP, _CX, _CY, _CZ, np.ascontiguousarray(geo.link_node),
+                   np.ascontiguousarray(geo.link_dir), lf)
+    U = _ordered_sum(u) / cells
+    fallback = fallback_counts(geo, scheme)
+    return FlowResult(geometry=geo, u=u, rho=rho, U=U, force=F.copy(), nu=nu, magic=magic,
+                      steps=steps, converged=converged, residual=r, tail=tail,
+                      seconds=seconds, mlups=n * steps / max(seconds, 1e-12) / 1e6,
+                      link_force=lf, fallback_links=fallback, history=hist)
+
+
+def _ordered_sum(a):
+    """Column sums of a 2-D array in row order (numpy's pairwise summation is also fixed, but
+    spelling the order out keeps the reduction independent of numpy's blocking)."""
+    return _serial_sum(np.ascontiguousarray(a, dtype=np.float64))
+
+
+@njit(cache=True)
+def _serial_sum(a):
+    out = np.zeros(a.shape[1])
+    for r in range(a.shape[0]):
+        for c in range(a.shape[1]):
+            out[c] += a[r, c]
+    return out

@@ -1,0 +1,175 @@
+"""The flow solver's validation ladder (peclet.flow, issue 25).
+
+    python validation/flow.py [--quick] [--json FILE] [--page-pack pall_ring_pack.npz]
+
+1. Poiseuille flow in a periodic slit, walls at fractions q = 0.1, 0.3, 0.5, 0.7 of a link:
+   exact to round-off (TRT, magic 3/16, linear interpolated bounce-back with its parabolic
+   correction); the max error relative to the centre-line speed is printed.
+2. Poiseuille flow in a pipe (radius R = 4, 8, 16 cells; curved wall): relative L2 error of
+   u and the observed order.
+3. Simple-cubic arrays of spheres against Zick & Homsy (1982), K = F / (6 pi mu a U) with F
+   = (dP/L) L^3 the force per sphere and U the superficial velocity, at the seven solid
+   fractions, at 8 and 16 (and, full run, 24) cells per diameter; accepted within 2% at >= 16,
+   observed order from the finest two pairs.
+4. A random sphere pack (``peclet.packing.pack``: spheres rained into a periodic box) against
+   the Carman-Kozeny (k = eps^3 d^2 / (180 (1 - eps)^2)) and Ergun viscous (150) terms.
+5. The page's 48-ring pack (``--page-pack``) at D/16 and D/24, Richardson-extrapolated.
+
+Prints tables; ``--json`` writes every number; ``--quick`` runs reduced sizes (tests).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+import numpy as np
+
+from peclet.flow import Grid, build_geometry, permeability, richardson, solve
+
+#: Zick & Homsy (1982), simple cubic arrays: solid fraction -> K.
+ZICK_HOMSY = {0.027: 2.008, 0.064: 2.810, 0.125: 4.292, 0.216: 7.442, 0.343: 15.4,
+              0.45: 28.1, 0.5236: 42.1}
+NU = 1.0 / 6.0
+
+
+def slit(q0, n=8, nu=NU, g=1e-6, tol=1e-12):
+    """Max |u - u_exact| / u_max in a slit of n nodes, walls q0 beyond the outer nodes."""
+    width = n - 1 + 2 * q0
+    grid = Grid((0.0, 0.0, 0.0), 1.0, (2, n, 2), (True, False, True))
+    geo = build_geometry(grid, lambda p: np.minimum(p[:, 1] + q0, (n - 1 + q0) - p[:, 1]))
+    r = solve(geo, [g, 0.0, 0.0], nu=nu, tol=tol, max_steps=400_000)
+    y = geo.ijk[:, 1] + q0
+    ue = g / (2 * nu) * y * (width - y)
+    return {"q": q0, "n": n, "err": float(np.abs(r.u[:, 0] - ue).max() / ue.max()),
+            "steps": r.steps}
+
+
+def pipe(radius, nu=NU, g=1e-6, tol=1e-10, scheme="linear"):
+    """Relative L2 error of the axial velocity in a pipe of ``radius`` cells (axis x)."""
+    m = int(math.ceil(radius)) + 2
+    c = m + 0.37          # the axis off the nodes, so q takes many values
+    grid = Grid((0.0, 0.0, 0.0), 1.0, (2, 2 * m + 2, 2 * m + 2), (True, False, False))
+
+    def phi(p):
+        return radius - np.sqrt((p[:, 1] - c) ** 2 + (p[:, 2] - c) ** 2)
+    geo = build_geometry(grid, phi)
+    r = solve(geo, [g, 0.0, 0.0], nu=nu, tol=tol, max_steps=400_000, scheme=scheme)
+    rr2 = (geo.ijk[:, 1] - c) ** 2 + (geo.ijk[:, 2] - c) ** 2
+    ue = g / (4 * nu) * (radius ** 2 - rr2)
+    return {"R": radius, "scheme": scheme, "err": float(np.sqrt(((r.u[:, 0] - ue) ** 2).sum() / (ue ** 2).sum())),
+            "steps": r.steps}
+
+
+def sphere_array(c, cells_per_d, nu=NU, g=1e-6, tol=1e-8):
+    """K of a simple cubic array at solid fraction c: period L = ceil(d (pi / 6c)^(1/3)) cells
+    (so the diameter has at least ``cells_per_d`` cells), radius from c exactly."""
+    L = int(math.ceil(cells_per_d * (math.pi / (6 * c)) ** (1 / 3) - 1e-9))
+    a = min(L * (3 * c / (4 * math.pi)) ** (1 / 3), 0.5 * L)
+    cen = np.full(3, 0.5 * (L - 1))
+
+    def phi(p):
+        d = p - cen
+        d -= L * np.round(d / L)
+        return np.sqrt((d * d).sum(1)) - a
+    geo = build_geometry(Grid((0.0, 0.0, 0.0), 1.0, (L, L, L), (True, True, True)), phi)
+    t0 = time.perf_counter()
+    r = solve(geo, [g, 0.0, 0.0], nu=nu, tol=tol, max_steps=400_000)
+    K = g * L ** 3 / (6 * math.pi * nu * a * r.U[0])
+    ref = ZICK_HOMSY[c]
+    return {"c": c, "cells_per_d": 2 * a, "L": L, "K": float(K), "ref": ref,
+            "err": float(K / ref - 1.0), "steps": r.steps, "seconds": time.perf_counter() - t0,
+            "balance": float(r.link_force[:, 0].sum() / (g * geo.n_fluid))}
+
+
+def random_spheres(count=60, box=3.0, resolution=12, seed=1, tol=1e-6):
+    """Spheres rained into box:``box`` (peclet.packing.pack), then the flow along y."""
+    from peclet.packing import Material, pack
+    res = pack("sphere", f"box:{box:g}", count=count, protocol="rain",
+               material=Material(e_n=0.3, e_t=0.0, mu=0.3), seed=seed, progress=False)
+    pf = permeability(res.pack, resolution=resolution, tol=tol)
+    e = pf.eps
+    ck = e ** 3 / (180.0 * (1 - e) ** 2)
+    return {"count": count, "resolution": resolution, "eps": e, "k_D2": pf.k_D2,
+            "k_carman_kozeny": ck, "ratio_ck": pf.k_D2 / ck, "kozeny": pf.kozeny,
+            "ergun_ratio": pf.ergun_ratio_sauter, "d_sauter": pf.d_sauter,
+            "window": pf.info["window"], "Re": pf.Re, "steps": pf.flow.steps}
+
+
+def page_pack(path, resolutions=(16, 24), tol=1e-6):
+    rows = []
+    for r in resolutions:
+        pf = permeability(path, resolution=r, tol=tol)
+        rows.append({k: v for k, v in pf.summary().items() if not isinstance(v, (list, dict))
+                     or k in ("window",)})
+    ext = richardson([1.0 / r for r in resolutions], [x["k_D2"] for x in rows])
+    return {"runs": rows, "richardson": ext}
+
+
+def _table(rows, cols):
+    from benchmarks._report import table
+    return table([[r[c] if not isinstance(r[c], float) else f"{r[c]:.5g}" for c in cols]
+                  for r in rows], cols)
+
+
+def main(argv=None):
+    import warnings
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="reduced sizes")
+    ap.add_argument("--json", default=None, help="write the results here")
+    ap.add_argument("--page-pack", default=None, help="the page's pall_ring_pack.npz")
+    a = ap.parse_args(argv)
+    warnings.simplefilter("ignore")
+    out = {}
+    out["slit"] = [slit(q) for q in (0.1, 0.3, 0.5, 0.7)]
+    print("1. Poiseuille slit (8 nodes), max error / u_max\n"
+          + _table(out["slit"], ["q", "n", "err", "steps"]))
+    radii = (4.0, 8.0) if a.quick else (4.0, 8.0, 16.0)
+    out["pipe"] = [pipe(R, scheme=s) for s in ("linear", "bouzidi") for R in radii]
+    for i, p in enumerate(out["pipe"]):
+        prev = out["pipe"][i - 1] if i else None
+        p["order"] = (math.log(prev["err"] / p["err"]) / math.log(p["R"] / prev["R"])
+                      if prev and prev["scheme"] == p["scheme"] else "")
+    print("\n2. Poiseuille pipe, relative L2 error (linear: with the parabolic correction, "
+          "exact up to the convergence tolerance; bouzidi: plain, second order)\n"
+          + _table(out["pipe"], ["R", "scheme", "err", "order", "steps"]))
+    res = (8, 16) if a.quick else (8, 16, 24)
+    fr = (0.125, 0.5236) if a.quick else tuple(ZICK_HOMSY)
+    zh = []
+    for c in fr:
+        for r in res:
+            zh.append(sphere_array(c, r))
+            print(f"   ZH c={c} d={r}: K={zh[-1]['K']:.4f} err={zh[-1]['err']:+.4f}",
+                  flush=True)
+    for c in fr:
+        rs = [z for z in zh if z["c"] == c]
+        e1, e2 = abs(rs[-2]["err"]), abs(rs[-1]["err"])
+        rs[-1]["order"] = math.log(e1 / e2) / math.log(rs[-1]["cells_per_d"]
+                                                       / rs[-2]["cells_per_d"])
+    out["zick_homsy"] = zh
+    print("\n3. Zick & Homsy simple cubic arrays (K = F / 6 pi mu a U)\n"
+          + _table([{**z, "order": z.get("order", "")} for z in zh],
+                   ["c", "cells_per_d", "K", "ref", "err", "order", "steps"]))
+    ok = all(abs(z["err"]) <= 0.02 for z in zh if z["cells_per_d"] >= 16)
+    print(f"   within 2% at >= 16 cells per diameter: {ok}")
+    out["random_spheres"] = random_spheres(*((40, 3.0, 8) if a.quick else (150, 4.0, 16)))
+    rs = out["random_spheres"]
+    print("\n4. Random sphere pack\n" + _table([rs], ["count", "resolution", "eps", "k_D2",
+                                                     "k_carman_kozeny", "ratio_ck", "kozeny",
+                                                     "ergun_ratio"]))
+    if a.page_pack:
+        out["page"] = page_pack(a.page_pack, (8, 12) if a.quick else (16, 24))
+        print("\n5. The page's ring pack\n" + _table(out["page"]["runs"],
+              ["resolution", "k_D2", "kozeny", "ergun_ratio_sauter", "ergun_ratio_envelope",
+               "steps", "seconds"]))
+        print(f"   extrapolated k = {out['page']['richardson']['k0']:.5g} D^2")
+    if a.json:
+        from benchmarks._report import write_json
+        write_json(a.json, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
+    sys.exit(main())
