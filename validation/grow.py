@@ -26,8 +26,8 @@ from peclet.packing.grow import GrowSpec, grow
 
 RCP = (0.63, 0.645)
 Z_MIN = 5.8
-#: Below this N the jamming fraction of a small periodic cube is shifted down and spread out
-#: (O'Hern et al. 2003, Fig. 8: phi_J(N) approaches 0.639 as N^-0.7); such rows are printed
+#: Below this N the jamming fraction of a small periodic cube is shifted and spread out around
+#: its large-N value (O'Hern et al. 2003 study that finite-size shift); such rows are printed
 #: against the band but do not fail the run.
 FINITE_SIZE_N = 300
 
