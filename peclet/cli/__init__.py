@@ -6,6 +6,7 @@
     peclet drum ...        a rotating drum: dynamic angle and flow regime (peclet.cli.drum)
     peclet flow ...        permeability of a frozen pack, lattice Boltzmann (peclet.cli.flow)
     peclet stir ...        a stirred column: Lacey mixing index (peclet.cli.stir)
+    peclet warm            compile the kernels ahead into Numba's cache (peclet.cli.warm)
 
 Each subcommand module exposes ``add_parser(subparsers)`` (registers its options and sets
 ``func``) and is listed in :data:`SUBCOMMANDS`. A :class:`~peclet.core.validation.
@@ -24,7 +25,7 @@ import sys
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
 #: Modules (relative to this package) that each add one subcommand.
-SUBCOMMANDS = ("pall_ring", "ensemble", "pack", "drum", "stir", "flow")
+SUBCOMMANDS = ("pall_ring", "ensemble", "pack", "drum", "stir", "flow", "warm")
 
 
 #: A token that is a negative number (argparse alone takes only -1 and -.5 for one).

@@ -343,6 +343,12 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
     xb = np.empty(3)
     origin = np.zeros(3)
     nolattice = np.ones(5)
+    # integer arguments as int64 values, never literals: Numba compiles a callee once per
+    # literal value (and per tuple type), and each copy of _direction costs ~20 s of a cold
+    # first run (docs/architecture.md §7)
+    zero_i = np.int64(0)
+    one_i = np.int64(1)
+    feat_dir = np.int64(FEATURE_DIR)
     share = cur.probe.shape[0] // nw
     lpos = worker * share
     lend = lpos + share
@@ -355,7 +361,7 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
             sa = shape_of[a]
             xa = pos[a]
             Ra = rot[a]
-            nh = 0
+            nh = zero_i
             ot = old[t]
             if b >= 0:
                 sb = shape_of[b]
@@ -389,29 +395,30 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                         nh = 1
                 elif shape_kind[sa] == 0:
                     nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb, prog_b,
-                                           1.0, shape_lip[sb], shape_rad[sb], 1.0, 0, margin,
+                                           1.0, shape_lip[sb], shape_rad[sb], 1.0, zero_i, margin,
                                            margin, lk, lr, grid, goff[sb], gdims[sb], goh[sb],
                                            st, hits, nh)
                 elif shape_kind[sb] == 0:
                     nh, _ = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra, prog_a,
-                                           1.0, shape_lip[sa], shape_rad[sa], -1.0, FEATURE_DIR,
+                                           1.0, shape_lip[sa], shape_rad[sa], -1.0, feat_dir,
                                            margin, margin, lk, lr, grid, goff[sa], gdims[sa],
                                            goh[sa], st, hits, nh)
                 else:
                     # both ways: a's probes in b's tree, then b's probes in a's tree
                     tree = (xb, Rb, prog_b, 1.0, shape_lip[sb], shape_rad[sb], grid, goff[sb],
                             gdims[sb], goh[sb])
-                    nh, lpos = _direction(t, 0, ot, prev, cur, xa, Ra, sa, sb, geo, origin, tree,
-                                          1.0, 0, margin, delta, st, hits, nh, pose, lpos, lend)
+                    nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, sb, geo, origin,
+                                          tree, 1.0, zero_i, margin, delta, st, hits, nh, pose,
+                                          lpos, lend)
                     tree = (xa, Ra, prog_a, 1.0, shape_lip[sa], shape_rad[sa], grid, goff[sa],
                             gdims[sa], goh[sa])
-                    nh, lpos = _direction(t, 1, ot, prev, cur, xb, Rb, sb, sa, geo, origin, tree,
-                                          -1.0, FEATURE_DIR, margin, delta, st, hits, nh, pose,
-                                          lpos, lend)
+                    nh, lpos = _direction(t, one_i, ot, prev, cur, xb, Rb, sb, sa, geo, origin,
+                                          tree, -1.0, feat_dir, margin, delta, st, hits, nh,
+                                          pose, lpos, lend)
             else:
                 w = -1 - b
                 # a wall has no lattice: its whole program
-                prog_w = (ops, blocks, 0, nolattice, nogrid, geo.wall_op[w, 0],
+                prog_w = (ops, blocks, zero_i, nolattice, nogrid, geo.wall_op[w, 0],
                           geo.wall_op[w, 1])
                 # the wall at its pose (identity for a wall that never moved)
                 xw = geo.wall_pos[w]
@@ -419,13 +426,14 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                 if shape_kind[sa] == 0:
                     nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xw, Rw,
                                            prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
-                                           1.0, 0, margin, margin, lk, lr, grid, 0, nogrid,
-                                           origin, st, hits, nh)
+                                           1.0, zero_i, margin, margin, lk, lr, grid, zero_i,
+                                           nogrid, origin, st, hits, nh)
                 else:
                     tree = (xw, Rw, prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
-                            grid, 0, nogrid, origin)
-                    nh, lpos = _direction(t, 0, ot, prev, cur, xa, Ra, sa, b, geo, origin, tree,
-                                          1.0, 0, margin, delta, st, hits, nh, pose, lpos, lend)
+                            grid, zero_i, nogrid, origin)
+                    nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, b, geo, origin,
+                                          tree, 1.0, zero_i, margin, delta, st, hits, nh, pose,
+                                          lpos, lend)
             slots.count[t] = reduce_hits(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
                                          slots.point, slots.normal, slots.gap, slots.feat)
     cur.fill[worker] = lpos - worker * share if lpos <= lend else -1
@@ -452,5 +460,7 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, sl
     for k in range(nw, WORKERS):
         cur.fill[k] = 0
     for k in prange(nw):
-        _worker(k, nw, TASK_CHUNK, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots,
-                delta, old, prev, cur, scratch)
+        # k is unsigned in the parallel loop's body and signed where Numba types the call:
+        # one int64 signature instead of two compilations of the whole worker
+        _worker(np.int64(k), np.int64(nw), np.int64(TASK_CHUNK), tasks, pos, rot, shape_of,
+                geo, margin, tol2, touch, slots, delta, old, prev, cur, scratch)

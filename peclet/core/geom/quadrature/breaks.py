@@ -24,9 +24,9 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from .constants import (FLICKER, HASH_STEPS, KINK_SLOPE, KINK_STEPS, R_EXTRA, R_MHI, R_MHP,
-                        R_MLO, R_MLP, R_MX, R_MY, R_UBRK, R_UFLAG, R_UKNOT, R_VBRK, R_VFLAG,
-                        R_VKNOT, R_XP, R_XT, TRACK_STEPS, U_BREAK_STEPS, U_FLICKER, U_NUDGE,
+from .constants import (FLICKER, HASH_STEPS, I0, I1, I2, KINK_SLOPE, KINK_STEPS, R_EXTRA,
+                        R_MHI, R_MHP, R_MLO, R_MLP, R_MX, R_MY, R_UBRK, R_UFLAG, R_UKNOT,
+                        R_VBRK, R_VFLAG, R_VKNOT, R_XP, R_XT, TRACK_STEPS, U_BREAK_STEPS, U_FLICKER, U_NUDGE,
                         U_ZONE, U_ZONE_BREAKS, U_ZONE_MAX, V_NUDGE, V_PROBES)
 from .line_search import mix
 from .pieces import extrapolate, keep_seeds, knots, merge, piece_mids, sort_prefix, vsig
@@ -64,7 +64,7 @@ def _scan(C, u, steps, nex, U=None):
     if U is None:
         c0 = C.v0
         c1 = C.v1
-        nk = knots(P, iv, iu, ak, c0, c1, u, u, 1, a, b, lip, st, S, R_VKNOT)
+        nk = knots(P, iv, iu, ak, c0, c1, u, u, I1, a, b, lip, st, S, R_VKNOT)
         knot = S[R_VKNOT]
         brk = S[R_VBRK]
         flag = S[R_VFLAG]
@@ -75,7 +75,7 @@ def _scan(C, u, steps, nex, U=None):
     else:
         c0 = C.u0
         c1 = C.u1
-        nk = knots(P, iu, iv, ak, c0, c1, C.v0, C.v1, 2, a, b, lip, st, S, R_UKNOT)
+        nk = knots(P, iu, iv, ak, c0, c1, C.v0, C.v1, I2, a, b, lip, st, S, R_UKNOT)
         knot = S[R_UKNOT]
         brk = S[R_UBRK]
         flag = S[R_UFLAG]
@@ -100,7 +100,7 @@ def _scan(C, u, steps, nex, U=None):
     # the structure at x (hash, count: v-level roots, u-level midpoints in S[R_MLO], inside
     # length: v-level only) and at the next probe y (u-level midpoints in S[R_MY])
     hx = _NO_HASH
-    nx = 0
+    nx = I0
     lx = 0.0
     for s in range(nk - 1):
         s0 = knot[s]
@@ -115,7 +115,7 @@ def _scan(C, u, steps, nex, U=None):
             if U is None:
                 hx, nx, lx = vsig(C, u, x)
             else:
-                nx, hx = probe_mids(C, x, HASH_STEPS, R_MLO, nx, R_MLO, 0, R_MLO)
+                nx, hx = probe_mids(C, x, HASH_STEPS, R_MLO, nx, R_MLO, I0, R_MLO)
             if nx < 0:
                 return -1, _NO_HASH
             if U is None:
@@ -137,7 +137,7 @@ def _scan(C, u, steps, nex, U=None):
                 if U is None:
                     hy, ny, ly = vsig(C, u, y)
                 else:
-                    ny, hy = probe_mids(C, y, HASH_STEPS, R_MLO, nx, R_MLO, 0, R_MY)
+                    ny, hy = probe_mids(C, y, HASH_STEPS, R_MLO, nx, R_MLO, I0, R_MY)
                     ly = 0.0
                 if ny < 0:
                     return -1, _NO_HASH
@@ -159,7 +159,7 @@ def _scan(C, u, steps, nex, U=None):
                             # there: probe it again with the pieces seen just below it
                             # (2^-U_BREAK_STEPS away)
                             nre += 1
-                            mr, hr = probe(C, hi_, track, R_MLO, nx, R_MLO, 0)
+                            mr, hr = probe(C, hi_, track, R_MLO, nx, R_MLO, I0)
                             if mr < 0:
                                 return -1, _NO_HASH
                             if hi_ == y:
@@ -214,7 +214,7 @@ def _scan(C, u, steps, nex, U=None):
                         lx = l_hi
                         seq = mix(seq, hx)
                     else:
-                        nx = merge(S, R_MHI, nhi, R_MHI, 0, R_MLO)
+                        nx = merge(S, R_MHI, nhi, R_MHI, I0, R_MLO)
                     if hi_ >= y:
                         break
                     if U is not None:
@@ -224,7 +224,7 @@ def _scan(C, u, steps, nex, U=None):
                             # crossing leave a piece of zero width), and it may hash like the
                             # structure at y by chance: the next bracket starts just past it
                             x = xs
-                            nx, hx = probe_mids(C, x, track, R_MLO, nx, R_MLO, 0, R_MLO)
+                            nx, hx = probe_mids(C, x, track, R_MLO, nx, R_MLO, I0, R_MLO)
                             if nx < 0:
                                 return -1, _NO_HASH
                 x = y
@@ -233,7 +233,7 @@ def _scan(C, u, steps, nex, U=None):
                     nx = ny
                     lx = ly
                 else:
-                    nx = merge(S, R_MY, ny, R_MY, 0, R_MLO)
+                    nx = merge(S, R_MY, ny, R_MY, I0, R_MLO)
                     keep_seeds(U.seeds, U.nseed, m - 1, S, R_MLO, nx)
                 if last:
                     break
@@ -302,8 +302,8 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
     lo_ = x
     hi_ = y
     h_hi = hy
-    nhi = merge(S, R_MY, ny, R_MY, 0, R_MHI)
-    nx0 = merge(S, R_MLO, nlo, R_MLO, 0, R_MX)
+    nhi = merge(S, R_MY, ny, R_MY, I0, R_MHI)
+    nx0 = merge(S, R_MLO, nlo, R_MLO, I0, R_MX)
     for attempt in range(U.reprobes + 1):
         # each end's previous midpoints (count -1: none yet) to extrapolate
         nlp = -1
@@ -312,7 +312,7 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
         uhp = hi_
         for _ in range(steps):
             mid = 0.5 * (lo_ + hi_)
-            nxp = 0
+            nxp = I0
             if U.reprobes > 0:
                 nxp = extrapolate(S, R_MLO, nlo, lo_, R_MLP, nlp, ulp, mid, v0, v1, 0)
                 nxp = extrapolate(S, R_MHI, nhi, hi_, R_MHP, nhp, uhp, mid, v0, v1, nxp)
@@ -322,12 +322,12 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
             if mm < 0:
                 return hi_, h_hi, -1, nhi
             if hm == hx:
-                nlp = merge(S, R_MLO, nlo, R_MLO, 0, R_MLP)
+                nlp = merge(S, R_MLO, nlo, R_MLO, I0, R_MLP)
                 ulp = lo_
                 lo_ = mid
                 nlo = piece_mids(S, mm, R_MLO)
             else:
-                nhp = merge(S, R_MHI, nhi, R_MHI, 0, R_MHP)
+                nhp = merge(S, R_MHI, nhi, R_MHI, I0, R_MHP)
                 uhp = hi_
                 hi_ = mid
                 h_hi = hm
@@ -347,7 +347,7 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
         h_hi = hr
         nhi = piece_mids(S, mr, R_MHI)
         lo_ = x
-        nlo = merge(S, R_MX, nx0, R_MX, 0, R_MLO)
+        nlo = merge(S, R_MX, nx0, R_MX, I0, R_MLO)
     return hi_, h_hi, nlo, nhi
 
 

@@ -16,7 +16,7 @@ from numba import njit
 
 from .. import kernels as K
 from .breaks import probe, ubreaks, vbreaks
-from .constants import (BREAK_STEPS, HASH_STEPS, PROJECT_EPS, PROJECT_STEPS, R_LEAF, R_MC,
+from .constants import (BREAK_STEPS, HASH_STEPS, I0, PROJECT_EPS, PROJECT_STEPS, R_LEAF, R_MC,
                         R_MLO, R_ROOT, R_UBRK, R_UFLAG, R_VBRK, R_VFLAG, R_EXTRA, SURFACE_FRAC,
                         U_REPROBES)
 from .line_search import line_roots, run_moments
@@ -85,7 +85,7 @@ def _u_piece_rules(C, G, seeds, nseed, pu, pu0, pu1, s0, s1, a5, a7):
         for k in range(q):
             i = c + k if c + k < q else q - 1 - k
             if k == 0 or i == c - 1:
-                nprev = merge(S, R_MC, nc, R_MC, 0, R_MLO)
+                nprev = merge(S, R_MC, nc, R_MC, I0, R_MLO)
             u, wu = piece_node(pu0, pu1, gx[i], s0, s1)
             wu *= gw[i]
             m, _ = probe(C, u, BREAK_STEPS, R_MLO, nprev, R_MC, nc)
@@ -112,7 +112,7 @@ def _v_rule(C, gx, gw, u, wu, m, acc):
         for jv in range(gx.shape[0]):
             v, wv = piece_node(p0, p1, gx[jv], flag[pc] != 0.0, flag[pc + 1] != 0.0)
             nr, ins = line_roots(C.P, C.ak, C.iu, C.iv, u, v, C.a, C.b, C.lip, C.st,
-                                 S[R_ROOT], S[R_LEAF], 0)
+                                 S[R_ROOT], S[R_LEAF], I0)
             if nr < 0:
                 return False
             _accumulate(acc, wu * wv * gw[jv], C.iu, C.iv, C.ak, u, v, C.a, C.b, nr, ins,
@@ -283,7 +283,7 @@ def integrate_cell(P, clo, chi, lip, G, cen, st, S, seeds, nseed, a5, a7):
         # slots: the cell is done again without it
         a5[:] = 0.0
         a7[:] = 0.0
-        ok = cell_rules(C, G, seeds, nseed, 0, a5, a7)
+        ok = cell_rules(C, G, seeds, nseed, I0, a5, a7)
     if not ok:
         return -1.0
     est = 0.0

@@ -3,7 +3,17 @@
 Lengths given "of the cell" / "of the probe interval" are fractions of the cell's (or the
 interval's) extent along the axis concerned. Changing any of these changes the engine's bits
 (``scripts/fingerprint.py``); the measured trade-offs are noted where they were measured.
+
+Integer constants that kernels pass to other kernels (scratch rows, step counts, re-probes)
+are numpy int64 scalars: Numba types a global Python int as a literal and compiles a callee
+once per literal value it is called with; a global np.int64 is an ordinary int64 (one
+compilation). ``I0``/``I1``/``I2`` stand for the small counts written at call sites.
 """
+
+import numpy as np
+
+#: 0, 1 and 2 as int64 arguments of kernel calls (see the module notes).
+I0, I1, I2 = np.int64(0), np.int64(1), np.int64(2)
 
 # ------------------------------------------------------------------ scratch and capacities
 #: Max roots along one line, knots and breakpoints across one cell (a scratch row each). A
@@ -16,7 +26,7 @@ MAX_BREAKS = 128
 #: u-piece's centre), the ends' previous midpoints, two rows for extrapolated midpoints, and
 #: the midpoints at a bracket's start. Named rows, so that no kernel hard-codes an index.
 (R_ROOT, R_LEAF, R_KROOT, R_KLEAF, R_VKNOT, R_VBRK, R_VFLAG, R_UKNOT, R_UBRK, R_UFLAG, R_EXTRA,
- R_MLO, R_MHI, R_MY, R_MC, R_MLP, R_MHP, R_XP, R_XT, R_MX) = range(20)
+ R_MLO, R_MHI, R_MY, R_MC, R_MLP, R_MHP, R_XP, R_XT, R_MX) = (np.int64(i) for i in range(20))
 SCRATCH_ROWS = 20
 #: v-probes remembered per u-piece from the scan (see cell_rule.cell_rules): enough for the
 #: midpoints of every v-piece a u-piece's probes saw, in the cells measured (the Pall ring's
@@ -68,24 +78,24 @@ V_NUDGE = 1e-11
 U_NUDGE = 1e-9
 #: Bisection steps locating a breakpoint of the inner integrand (2^-44 of the cell): it may
 #: jump there (a wall parallel to the height axis), so the location must be sharp.
-BREAK_STEPS = 44
+BREAK_STEPS = np.int64(44)
 #: ... but past KINK_STEPS a bracket across which the line's inside length changes by less than
 #: KINK_SLOPE x its width holds a kink (or a jump of that size), whose misplacement costs only
 #: O(width^2): the bisection stops there.
-KINK_STEPS = 20
+KINK_STEPS = np.int64(20)
 KINK_SLOPE = 1e3
 #: ... and of the outer integrand (2^-30 of the probe interval): it jumps only at a wall normal to
 #: u, whose trace on the cell's edges is a u-knot, found exactly, unless the wall ends inside.
-U_BREAK_STEPS = 30
+U_BREAK_STEPS = np.int64(30)
 #: While locating a u-breakpoint only the v-structure (the sequence of piece signatures)
 #: matters, not where its breaks sit: its v-bisections stop at 2^-HASH_STEPS.
-HASH_STEPS = 12
+HASH_STEPS = np.int64(12)
 #: ... but inside a u-bisection the v-pieces seen are the probes of the next step, and a
 #: piece thinning to a vertex is followed only while its midpoint is sharper than its width.
-TRACK_STEPS = 24
+TRACK_STEPS = np.int64(24)
 #: Re-probes of a bisected u-break's upper end per probe interval (see breaks.locate_u); a
 #: cell that overflows with them is integrated again without.
-U_REPROBES = 4
+U_REPROBES = np.int64(4)
 #: u-breaks closer than this to the previous one are flicker (4 u-bisection resolutions).
 U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
 #: More than U_ZONE_BREAKS breaks in a row each closer than U_ZONE (of the cell) to the one

@@ -9,7 +9,7 @@ v-pieces, kept so that a piece narrower than the probe grid is looked for where 
 import numpy as np
 from numba import njit
 
-from .constants import R_KLEAF, R_KROOT, R_LEAF, R_ROOT, R_VBRK, R_XP
+from .constants import I0, R_KLEAF, R_KROOT, R_LEAF, R_ROOT, R_VBRK, R_XP
 from .line_search import line_roots, run_moments, signature, sort_prefix
 
 
@@ -21,7 +21,7 @@ def knots(P, ax, f1, f2, lo, hi, c1lo, c1hi, n1, c2lo, c2hi, lip, st, S, row):
     solid's trace on a cell face or edge changes sign. Written to S[row, 1:m+1] between
     S[row, 0] = lo and S[row, m+1] = hi; returns m + 2, or -1 on overflow. Found by the
     certified line search, so none is missed on a 1-Lipschitz tree."""
-    n = 0
+    n = I0
     for i in range(2 * n1):
         c1 = c1lo if i < 2 else c1hi
         c2 = c2lo if i % 2 == 0 else c2hi
@@ -51,7 +51,7 @@ def vsig(C, u, v):
     S = C.S
     roots = S[R_ROOT]
     nr, ins = line_roots(C.P, C.ak, C.iu, C.iv, u, v, C.a, C.b, C.lip, C.st, roots, S[R_LEAF],
-                         0)
+                         I0)
     if nr < 0:
         return np.uint64(0), -1, 0.0
     length, _, _ = run_moments(nr, ins, roots, C.a, C.b, 0.0)

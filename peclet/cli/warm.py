@@ -1,0 +1,42 @@
+"""``peclet warm``: compile the Numba kernels of a run ahead (a fresh install's first minute).
+
+    peclet warm
+
+Compiles the DEM step's kernels in a child process while this one compiles the quadrature (by
+measuring the page's Pall ring), so both land in Numba's on-disk cache on two cores at once;
+every later run (and the test suite) then starts without compiling them. Prints what was
+compiled and how long it took; nothing else is written. See :mod:`peclet.dem.warm`.
+"""
+from __future__ import annotations
+
+import time
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub):
+    p = sub.add_parser("warm", help="compile the kernels ahead into Numba's cache",
+                       description="Compile the DEM step's and the quadrature's Numba kernels "
+                       "into the on-disk cache, two processes at once.")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args):
+    from peclet.dem import warm
+    from peclet.dem.simulation import step_kernels_cached
+    from peclet.packing.api import _resolve_element, element_model
+
+    t0 = time.perf_counter()
+    child = warm.start_background()
+    element_model(_resolve_element("pall_ring"))          # the quadrature's kernels, here
+    t_quad = time.perf_counter() - t0
+    ok = warm.finish(child)
+    if not ok:                                            # compile them here instead
+        warm.compile_step_kernels()
+    t = time.perf_counter() - t0
+    dem = "already cached" if child is None else ("compiled beside it" if ok
+                                                  else "compiled after it (the child failed)")
+    print(f"quadrature kernels: {t_quad:.0f} s; DEM step kernels: {dem}; total {t:.0f} s; "
+          f"cached now: {bool(step_kernels_cached())}")
+    return 0
