@@ -623,12 +623,7 @@ def substep(sim, state, dt, skin_frac):
     b = sim._bodies
     if state.n_bodies != b.n:
         state.clear_history()
-    inv_mass = b.inv_mass
-    inv_inertia = sim._resolved_inv_inertia()
-    x = sim._domain.wrap(b.pos.copy())
-    q = b.quat.copy()
-    v = b.vel.copy()
-    w = b.omega.copy()
+    inv_mass, inv_inertia, x, q, v, w = sim._working_state()
     sim._guard(x, q, v, w)
     cand = _candidates(sim, state, x, q, skin_frac, inv_mass)
     t1 = time.perf_counter()

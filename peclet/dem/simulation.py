@@ -548,25 +548,14 @@ class Simulation:
         non-finite or its speed exceeds ``1e3`` domain sizes per unit time (the domain size is
         the largest side of :meth:`set_domain`, else of the particles' bounding box plus two
         bounding radii)."""
-        if dt is None:
-            if self._dt is None:
-                raise PecletArgumentError("dt", "given, or set with set_dt(dt) before",
-                                          None, "no time step")
-            dt = self._dt
-        dt = check_float("dt", dt, 0.0, lo_open=True)
+        dt = self._resolve_dt(dt)
         self._check_ready()
         if self._bodies.n == 0:
             self._step_count += 1
             self._time += dt
             return
         t0 = time.perf_counter()
-        b = self._bodies
-        inv_mass = b.inv_mass
-        inv_inertia = self._resolved_inv_inertia()
-        x = self._domain.wrap(b.pos.copy())
-        q = b.quat.copy()
-        v = b.vel.copy()
-        w = b.omega.copy()
+        inv_mass, inv_inertia, x, q, v, w = self._working_state()
         with np.errstate(over="ignore", invalid="ignore"):   # the guard reports it
             v[inv_mass > 0] += self._gravity * dt
             if self._ext_force is not None:
@@ -606,6 +595,7 @@ class Simulation:
         self._guard(x, q, v, w)
         t2 = time.perf_counter()
         # commit
+        b = self._bodies
         b.pos, b.quat, b.vel, b.omega = x, q, v, w
         self._warm.store(keys, lam, t1v, t2v)
         self._wallmo.advance(dt)
@@ -614,6 +604,22 @@ class Simulation:
         self._time += dt
         self.timings["solver"] += t2 - t1
         self.timings["total"] += t2 - t0
+
+    def _resolve_dt(self, dt):
+        # the step's dt: the argument, else set_dt's; finite and > 0
+        if dt is None:
+            if self._dt is None:
+                raise PecletArgumentError("dt", "given, or set with set_dt(dt) before",
+                                          None, "no time step")
+            dt = self._dt
+        return check_float("dt", dt, 0.0, lo_open=True)
+
+    def _working_state(self):
+        # (inverse masses, resolved inverse moments, and copies of the positions (wrapped),
+        # quaternions, velocities and angular velocities) that a step advances and commits
+        b = self._bodies
+        return (b.inv_mass, self._resolved_inv_inertia(), self._domain.wrap(b.pos.copy()),
+                b.quat.copy(), b.vel.copy(), b.omega.copy())
 
     def relax(self, n=1):
         """Remove overlaps without dynamics: ``n`` (an integer in [1, 10000]) passes of
@@ -676,12 +682,7 @@ class Simulation:
         from peclet.dem import hertz
 
         n = check_int("substeps", substeps, 1, 10 ** 6)
-        if dt is None:
-            if self._dt is None:
-                raise PecletArgumentError("dt", "given, or set with set_dt(dt) before",
-                                          None, "no time step")
-            dt = self._dt
-        dt = check_float("dt", dt, 0.0, lo_open=True)
+        dt = self._resolve_dt(dt)
         skin = hertz.DEFAULT_SKIN_FRACTION if skin_frac is None else check_float(
             "skin_frac", skin_frac, 0.0, 10.0, lo_open=True)
         self._check_ready()
