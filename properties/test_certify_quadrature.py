@@ -2,7 +2,9 @@
 
 Split into :data:`~peclet_verify.profiles.SHARDS` shards, each searching its share of the
 profile's examples under its own name (so its own seed under a derandomised profile), so that
-``pytest -n`` spreads the slowest certificate over the workers.
+``pytest -n`` spreads the slowest certificate over the workers. The levels of one example
+share their integrated cells (``quadrature_convergence(..., fast=True)``);
+tests/test_quadrature_certificate_cache.py holds that path to the straightforward one.
 """
 import math
 
@@ -24,3 +26,4 @@ def test_quadrature_convergence(peclet_certificate, shard):
         pst.closed_form_solids(pst.CLOSED_FORM_KINDS),
         name=f"{REG.title('quadrature')} [shard {shard}/{SHARDS}]",
         settings=P.profile_settings(max_examples=share)))
+

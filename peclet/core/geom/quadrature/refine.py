@@ -59,6 +59,32 @@ def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
     return mom, err, code
 
 
+def arrays_key(arrays):
+    """A dict key made of the bytes of ``arrays`` (a program's, a box's)."""
+    return tuple(np.ascontiguousarray(a).tobytes() for a in arrays)
+
+
+def cached_cells(cache, P, cells, lip, cen):
+    """:func:`integrate_cells` of ``cells`` through ``cache`` (a dict the caller keeps): rows of
+    cells integrated before for the same program, ``lip`` and ``cen`` are copied from it, the
+    others integrated in one call and stored. A cell's row depends on nothing else (cells are
+    independent), so the result is bitwise what :func:`integrate_cells` gives; the tolerance
+    levels of one solid in one box share most of their cells (the top cells at least)."""
+    tag = (lip, cen.tobytes()) + arrays_key(P)
+    rows = cache.setdefault(tag, {})
+    keys = [c.tobytes() for c in cells]
+    missing = [i for i, k in enumerate(keys) if k not in rows]
+    if missing:
+        m, e, c = integrate_cells(*P, np.ascontiguousarray(cells[missing]), lip, *_G5, *_G7,
+                                  cen)
+        for j, i in enumerate(missing):
+            rows[keys[i]] = (m[j], e[j], c[j])
+    got = [rows[k] for k in keys]
+    return (np.array([g[0] for g in got]).reshape(-1, 10),
+            np.array([g[1] for g in got]).reshape(-1, 10),
+            np.array([g[2] for g in got], dtype=np.int64))
+
+
 def _children(cells):
     """The 8 children of each cell of ``cells`` (N, 6), in a fixed order: (8 N, 6)."""
     lo, hi = cells[:, 0:3], cells[:, 3:6]
@@ -71,7 +97,7 @@ def _children(cells):
     return out.reshape(-1, 6)
 
 
-def integrate_body(prog, lo, hi, n, lip, tol):
+def integrate_body(prog, lo, hi, n, lip, tol, cache=None):
     """Raw moments (10,) of the solid relative to the box centre, their error estimates (10,)
     and diagnostics (cells integrated, deepest level, cells left unconverged at MAX_DEPTH,
     overflow flag), by global adaptive refinement.
@@ -81,7 +107,10 @@ def integrate_body(prog, lo, hi, n, lip, tol):
     error over V, V^1/2 T^1/2 or T), and while the sum over cells exceeds ``tol``, the cells
     with the largest errors are split until the rest add up to at most tol / 2 (cells where
     the surface was seen but not integrated are always split), down to MAX_DEPTH levels. So
-    ``tol`` is the relative accuracy of the solid's moments, spent where the error is."""
+    ``tol`` is the relative accuracy of the solid's moments, spent where the error is.
+
+    ``cache`` (optional dict, see :func:`cached_cells`) shares integrated cells between calls:
+    the result is bitwise the same with or without it."""
     P = (prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end)
     cen = 0.5 * (lo + hi)
     edges = [np.linspace(lo[d], hi[d], n + 1) for d in range(3)]
@@ -106,7 +135,10 @@ def integrate_body(prog, lo, hi, n, lip, tol):
                 f"({visited} integrated down to level {int(depth.max(initial=0))}, "
                 f"{len(new)} more asked for): the solid is far thinner than its box [lo, hi] "
                 "or tol is out of reach; give a box closer to the solid, or a looser tol")
-        m_new, e_new, c_new = integrate_cells(*P, new, lip, *_G5, *_G7, cen)
+        if cache is None:
+            m_new, e_new, c_new = integrate_cells(*P, new, lip, *_G5, *_G7, cen)
+        else:
+            m_new, e_new, c_new = cached_cells(cache, P, new, lip, cen)
         visited += len(new)
         if np.any(c_new < 0):
             return np.zeros(10), np.zeros(10), np.array([visited, 0, 0, 1.0])
