@@ -17,6 +17,7 @@ import pytest
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
 from peclet.dem import Simulation, hertz
+from validation import chung_ooi
 
 G = 9.81
 
@@ -64,22 +65,11 @@ def _sphere_sim(radii, pos, vel, rho, youngs, poisson):
 
 
 def _run_impact(sim, gap, dt):
-    """Step until the contact ends; (delta_max, f_max, contact time by interpolated
-    crossings of gap())."""
-    g_prev, t, t_in, dmax, fmax = gap(), 0.0, None, 0.0, 0.0
-    for _ in range(100000):
-        sim.step_hertz(1, dt)
-        t += dt
-        g = gap()
-        fn = sim.hertz_contacts()["normal_force"]
-        fmax = max(fmax, float(fn.max()) if len(fn) else 0.0)
-        dmax = max(dmax, -g)
-        if t_in is None and g < 0.0 <= g_prev:
-            t_in = t - dt * g / (g - g_prev)
-        if t_in is not None and g >= 0.0 > g_prev:
-            return dmax, fmax, t - dt * g / (g - g_prev) - t_in
-        g_prev = g
-    raise AssertionError("the impact did not end")
+    """(delta_max, f_max, contact time) of the impact gap() follows (validation/chung_ooi.py's
+    measurement)."""
+    dmax, fmax, tc, _ = chung_ooi.follow_impact(sim, gap, dt, 100000)
+    assert tc is not None, "the impact did not end"
+    return dmax, fmax, tc
 
 
 def _analytic(m, r, es, v):

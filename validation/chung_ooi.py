@@ -168,10 +168,23 @@ def impact(spheres, wall, e, mu, steps, v_approach):
             return -x[0, 0] - spheres[0][0]
         return float(np.linalg.norm(x[1] - x[0])) - spheres[0][0] - spheres[1][0]
 
+    dmax, fmax, tc, n = follow_impact(sim, gap, dt, 50 * steps)
+    if tc is None:
+        raise RuntimeError("the impact did not end within 50 contact times")
+    return {"delta_max": dmax, "f_max": fmax, "contact_time": tc,
+            "v": sim.get_velocities(), "w": sim.get_angular_velocities(), "dt": dt,
+            "substeps": n + 1, "masses": masses}
+
+
+def follow_impact(sim, gap, dt, max_substeps):
+    """Step ``sim`` by Hertz substeps of ``dt`` until the contact that ``gap()`` (the surfaces'
+    distance, < 0 in contact) measures has begun and ended. Returns (delta_max, f_max, the
+    contact time from the linearly interpolated crossings of gap = 0, substeps taken); the
+    contact time is None if it did not end within ``max_substeps``."""
     g_prev, t = gap(), 0.0
-    t_in = t_out = None
+    t_in = None
     dmax = fmax = 0.0
-    for n in range(50 * steps):
+    for n in range(max_substeps):
         sim.step_hertz(1, dt)
         t += dt
         g = gap()
@@ -181,14 +194,9 @@ def impact(spheres, wall, e, mu, steps, v_approach):
         if t_in is None and g < 0.0 <= g_prev:
             t_in = t - dt * g / (g - g_prev)
         if t_in is not None and g >= 0.0 > g_prev:
-            t_out = t - dt * g / (g - g_prev)
-            break
+            return dmax, fmax, t - dt * g / (g - g_prev) - t_in, n + 1
         g_prev = g
-    if t_out is None:
-        raise RuntimeError("the impact did not end within 50 contact times")
-    return {"delta_max": dmax, "f_max": fmax, "contact_time": t_out - t_in,
-            "v": sim.get_velocities(), "w": sim.get_angular_velocities(), "dt": dt,
-            "substeps": n + 1, "masses": masses}
+    return dmax, fmax, None, max_substeps
 
 
 def _err(ours, ref):
