@@ -104,6 +104,14 @@ def _options(args):
     return res, window, re_, tol, steps
 
 
+def _reason(message):
+    """The parenthesised reason at the end of a PecletArgumentError message ("... got 'x'
+    (reason)"), or the whole message."""
+    tail = message.split(", got ", 1)[-1]
+    i = tail.find(" (")
+    return tail[i + 2:-1] if i >= 0 and tail.endswith(")") else message
+
+
 def run(args):
     import numpy as np
 
@@ -120,7 +128,7 @@ def run(args):
     except PecletArgumentError as exc:
         raise PecletArgumentError("pack", "a peclet pack file (.npz written by peclet pack or "
                                   "peclet pall-ring)", args.pack,
-                                  str(exc).split("(", 1)[-1].rstrip(")")) from None
+                                  _reason(str(exc))) from None
     out, previous = check_output_dir(args.out, OUTPUTS, args.overwrite, "--out")
     if threads is not None:
         import numba
