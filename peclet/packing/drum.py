@@ -390,7 +390,6 @@ class Drum:
         return max(1, int(round(min(t_rev / 90.0, 0.25) / self.dt)))
 
     def turn(self, omega):
-        self.current_omega = float(omega)
         self.sim.set_wall_velocity(self.wall, angular=(0.0, 0.0, float(omega)))
 
     def step(self, k=1):
@@ -547,11 +546,11 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
             frames.append(_frame(drum, k, t_turn))
         if (k - 1) in snap_at:
             snaps.append(_frame(drum, k, t_turn))
-        if phase != "spinup" and (k % every == 0):
+        if phase.name != "spinup" and (k % every == 0):
             X = sim.get_positions()
             window = None if window_half is None else np.abs(X[:, 2]) < window_half
-            s = measure(X, sim.get_velocities(), drum.radii, R, drum.current_omega, d, window)
-            s.update(t=t_turn, phase=phase, revolutions=angle / (2 * math.pi))
+            s = measure(X, sim.get_velocities(), drum.radii, R, phase.omega, d, window)
+            s.update(t=t_turn, phase=phase.name, revolutions=angle / (2 * math.pi))
             samples.append(s)
 
     run_phases(sched, drum.dt, drum.step, drum.turn, observe, bar)

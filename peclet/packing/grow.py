@@ -92,13 +92,6 @@ class GrowSpec:
                                                               2 ** 63 - 1))
 
 
-def _element(name):
-    from .api import _resolve_element, element_model
-
-    m = element_model(_resolve_element(name))
-    return m
-
-
 def _envelope(model):
     """The element's envelope volume (its solid volume when it has no envelope)."""
     env = float(model.envelope_volume)
@@ -192,7 +185,9 @@ def grow(spec, progress=True, threads=None):
         from .pipeline_checks import set_threads
         set_threads(threads)
     spec = spec.checked()
-    model = _element(spec.element)
+    from .api import _resolve_element, element_model
+
+    model = element_model(_resolve_element(spec.element))
     d = model.d
     rng = np.random.default_rng(spec.seed)
     sim = Simulation(spec.count)

@@ -33,7 +33,7 @@ def run_phases(phases, dt, step, turn, after_step=None, bar=None):
     """Run ``phases`` (a list of :class:`Phase`): at the start of each, ``turn(omega)`` sets the
     wall's angular speed; then ``step()`` advances the simulation by ``dt``, and
     ``after_step(k, t, angle, phase)`` sees the global step count k (from 1), the time t since
-    the first phase began, the angle turned (rad, the sum of omega dt) and the phase's name.
+    the first phase began, the angle turned (rad, the sum of omega dt) and the :class:`Phase`.
     ``bar`` (a :class:`peclet.packing.progress.Progress`) is advanced one step at a time.
     Returns (steps, t, angle)."""
     k, t, angle = 0, 0.0, 0.0
@@ -45,7 +45,7 @@ def run_phases(phases, dt, step, turn, after_step=None, bar=None):
             t += dt
             angle += ph.omega * dt
             if after_step is not None:
-                after_step(k, t, angle, ph.name)
+                after_step(k, t, angle, ph)
             if bar is not None:
                 bar.update(1, label=ph.name)
     return k, t, angle

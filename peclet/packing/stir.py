@@ -149,7 +149,7 @@ def build_trees(spec):
     return b, column, _balanced_union(b, parts)
 
 
-def _lattice(spec, b, column, impeller, rng):
+def _lattice(spec, b, impeller, rng):
     """The ``count`` lowest jittered lattice sites clear of both walls (None if too few)."""
     r = spec.grain_radius
     s = 2.25 * r
@@ -178,8 +178,7 @@ class StirredColumn:
         self.sim = None
 
     def check_room(self, name="count"):
-        if _lattice(self.spec, self.builder, self.column, self.impeller,
-                    np.random.default_rng(0)) is None:
+        if _lattice(self.spec, self.builder, self.impeller, np.random.default_rng(0)) is None:
             raise PecletArgumentError(name, "a count the column holds on its start lattice",
                                       self.spec.count)
 
@@ -189,7 +188,7 @@ class StirredColumn:
 
         spec, r = self.spec, self.spec.grain_radius
         rng = np.random.default_rng(spec.seed)
-        P = _lattice(spec, self.builder, self.column, self.impeller, rng)
+        P = _lattice(spec, self.builder, self.impeller, rng)
         if P is None:
             raise PecletArgumentError("count", "a count the column holds on its start "
                                       "lattice", spec.count)
@@ -296,8 +295,7 @@ def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous
         from .pipeline_checks import set_threads
         set_threads(threads)
     spec = spec.checked()
-    col = StirredColumn(spec)
-    col.check_room()
+    col = StirredColumn(spec)           # build() refuses a count the lattice cannot hold
     sched = col.schedule()
     total = sum(ph.steps for ph in sched)
     bar = Progress(total, desc="stir", enabled=progress)
@@ -315,7 +313,7 @@ def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous
             first[0] = time.perf_counter() - t0
         if k == settle_steps:
             col.label()
-        if phase == "stir" and (k - settle_steps) % every == 0 or k == settle_steps:
+        if phase.name == "stir" and (k - settle_steps) % every == 0 or k == settle_steps:
             s = col.measure()
             s.update(t=t, revolutions=angle / (2.0 * math.pi))
             samples.append(s)
