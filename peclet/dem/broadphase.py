@@ -5,16 +5,23 @@ below ``r_i + r_j + margin``. On periodic axes the displacement is wrapped into
 ``[-L/2, L/2)`` (one image per pair; the caller guarantees ``L > 2 * cutoff`` so that no pair can
 interact through two images). Non-periodic axes need no domain: the grid spans the particles.
 
-The kernel is serial on purpose: it costs a few microseconds per body, less than the barrier
-of a parallel launch on a loaded machine. Count pass, then fill pass into exactly-sized arrays;
-within a body's row the partners are sorted by index, so the list is ordered by (i, j).
+Count pass, then fill pass into exactly-sized arrays; within a body's row the partners are
+sorted by index, so the list is ordered by (i, j). Rows are independent: a large bed deals them
+to parallel workers (:func:`pairs`), a small one stays serial (a parallel launch costs more than
+a few hundred rows); both give the same arrays.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
+#: From this many bodies the rows are found in parallel (below, a parallel launch costs more
+#: than the rows); either way the same arrays.
+PARALLEL_BODIES = 4000
+#: Row workers of the parallel path (rows interleaved among them: loads even out).
+ROW_WORKERS = 32
 
 
 @njit(cache=True)
@@ -69,16 +76,14 @@ def _axis_cells(c, dim, periodic, out):
 
 @njit(cache=True)
 def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               out_j, out_shift, write, base):
-    """Visit body i's partners j > i; count them, and if ``write`` store them from ``base``."""
-    ax = np.empty(3, np.int64)
-    ay = np.empty(3, np.int64)
-    az = np.empty(3, np.int64)
+               out_j, out_shift, write, base, ax, ay, az, d):
+    """Visit body i's partners j > i; count them, and if ``write`` store them from ``base``.
+    ``ax``, ``ay``, ``az`` (3,) int64 and ``d`` (3,) float64 are scratch (allocated once per
+    call of :func:`find_pairs`: an allocation per body cost a third of the phase)."""
     nx = _axis_cells(coords[i, 0], dims[0], periodic[0], ax)
     ny = _axis_cells(coords[i, 1], dims[1], periodic[1], ay)
     nz = _axis_cells(coords[i, 2], dims[2], periodic[2], az)
     cnt = 0
-    d = np.empty(3)
     for a in range(nx):
         for b in range(ny):
             for c in range(nz):
@@ -105,27 +110,33 @@ def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, c
 
 
 @njit(cache=True)
-def find_pairs(pos, radius, margin, lo, cell, dims, box, periodic):
-    """Candidate pairs. Returns (a (P,), b (P,), shift (P, 3)) with a < b, sorted by (a, b);
-    ``pos[b] + shift`` is the image of b nearest to a."""
-    n = pos.shape[0]
-    cell_start, items, coords = build_cells(pos, lo, cell, dims)
-    counts = np.zeros(n, np.int64)
+def _count_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
+                counts):
+    """counts[i] for the rows i = k, k + nw, ... (each row only written by its owner)."""
+    ax = np.empty(3, np.int64)
+    ay = np.empty(3, np.int64)
+    az = np.empty(3, np.int64)
+    d = np.empty(3)
     dummy_j = np.empty(0, np.int64)
     dummy_s = np.empty((0, 3))
-    for i in range(n):
+    zero = np.int64(0)
+    for i in range(k, pos.shape[0], nw):
         counts[i] = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
-                               coords, dummy_j, dummy_s, False, 0)
-    offs = np.zeros(n + 1, np.int64)
-    for i in range(n):
-        offs[i + 1] = offs[i] + counts[i]
-    total = offs[n]
-    pb = np.empty(total, np.int64)
-    shift = np.empty((total, 3))
-    for i in range(n):
+                               coords, dummy_j, dummy_s, False, zero, ax, ay, az, d)
+
+
+@njit(cache=True)
+def _fill_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
+               offs, pb, shift):
+    """Rows i = k, k + nw, ...: partners and shifts from offs[i], sorted by partner index (a
+    fixed order, independent of the cell layout)."""
+    ax = np.empty(3, np.int64)
+    ay = np.empty(3, np.int64)
+    az = np.empty(3, np.int64)
+    d = np.empty(3)
+    for i in range(k, pos.shape[0], nw):
         _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                   pb, shift, True, offs[i])
-        # insertion sort of row i by partner index: a fixed order independent of cell layout
+                   pb, shift, True, offs[i], ax, ay, az, d)
         for u in range(offs[i] + 1, offs[i + 1]):
             j = pb[u]
             s0 = shift[u, 0]
@@ -142,11 +153,60 @@ def find_pairs(pos, radius, margin, lo, cell, dims, box, periodic):
             shift[w + 1, 0] = s0
             shift[w + 1, 1] = s1
             shift[w + 1, 2] = s2
+
+
+@njit(cache=True)
+def _rows(counts):
+    """(offs (n + 1,), pb, shift, pa) sized for the row counts; pa filled."""
+    n = counts.shape[0]
+    offs = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        offs[i + 1] = offs[i] + counts[i]
+    total = offs[n]
     pa = np.empty(total, np.int64)
     for i in range(n):
         for u in range(offs[i], offs[i + 1]):
             pa[u] = i
+    return offs, np.empty(total, np.int64), np.empty((total, 3)), pa
+
+
+@njit(cache=True)
+def find_pairs(pos, radius, margin, lo, cell, dims, box, periodic):
+    """Candidate pairs. Returns (a (P,), b (P,), shift (P, 3)) with a < b, sorted by (a, b);
+    ``pos[b] + shift`` is the image of b nearest to a."""
+    cell_start, items, coords = build_cells(pos, lo, cell, dims)
+    counts = np.zeros(pos.shape[0], np.int64)
+    one = np.int64(1)
+    zero = np.int64(0)
+    _count_rows(zero, one, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
+                counts)
+    offs, pb, shift, pa = _rows(counts)
+    _fill_rows(zero, one, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
+               offs, pb, shift)
     return pa, pb, shift
+
+
+@njit(cache=True, parallel=True)
+def find_pairs_parallel(pos, radius, margin, lo, cell, dims, box, periodic):
+    """:func:`find_pairs` with the rows dealt to ROW_WORKERS parallel workers (interleaved):
+    every row is written by its owner alone, so the result is the same array, bit for bit."""
+    cell_start, items, coords = build_cells(pos, lo, cell, dims)
+    counts = np.zeros(pos.shape[0], np.int64)
+    nw = np.int64(ROW_WORKERS)
+    for k in prange(ROW_WORKERS):
+        _count_rows(np.int64(k), nw, pos, radius, margin, box, periodic, dims, cell_start,
+                    items, coords, counts)
+    offs, pb, shift, pa = _rows(counts)
+    for k in prange(ROW_WORKERS):
+        _fill_rows(np.int64(k), nw, pos, radius, margin, box, periodic, dims, cell_start,
+                   items, coords, offs, pb, shift)
+    return pa, pb, shift
+
+
+def pairs(pos, radius, margin, lo, cell, dims, box, periodic):
+    """Candidate pairs (see :func:`find_pairs`), in parallel from PARALLEL_BODIES bodies."""
+    run = find_pairs_parallel if len(pos) >= PARALLEL_BODIES else find_pairs
+    return run(pos, radius, margin, lo, cell, dims, box, periodic)
 
 
 def grid_for(pos, cutoff, domain_lo, domain_hi, periodic, max_cells):
@@ -183,3 +243,35 @@ def grid_for(pos, cutoff, domain_lo, domain_hi, periodic, max_cells):
         if int(np.prod(dims)) <= max_cells:
             return lo, cell, dims, box
         size *= 1.5
+
+
+@njit(cache=True)
+def task_list(pa, pb, shift, n, n_walls, base, reach, wall_reach):
+    """The narrow phase's tasks: the pairs ``(pa, pb, shift)`` of :func:`find_pairs` and one
+    task per body and wall (b = -1 - w), in (a, b) order (a body's wall tasks first, b
+    ascending), with each task's margin ``base + (reach[a] + reach[b])`` for two bodies and
+    ``base + (reach[a] + wall_reach[a, w])`` against wall w. Returns (a, b, shift (T, 3),
+    margin)."""
+    npair = pa.shape[0]
+    total = npair + n * n_walls
+    ta = np.empty(total, np.int64)
+    tb = np.empty(total, np.int64)
+    ts = np.zeros((total, 3))
+    tm = np.empty(total)
+    u = 0
+    k = 0
+    for a in range(n):
+        for w in range(n_walls - 1, -1, -1):
+            ta[k] = a
+            tb[k] = -1 - w
+            tm[k] = base + (reach[a] + wall_reach[a, w])
+            k += 1
+        while u < npair and pa[u] == a:
+            ta[k] = a
+            tb[k] = pb[u]
+            for e in range(3):
+                ts[k, e] = shift[u, e]
+            tm[k] = base + (reach[a] + reach[pb[u]])
+            k += 1
+            u += 1
+    return ta, tb, ts, tm

@@ -16,13 +16,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from peclet.dem import broadphase, narrowphase
+from peclet.dem import broadphase, distgrid, narrowphase
 from peclet.dem.reuse import Reuse
 from peclet.dem.shapes import SCENE
 
 #: A pair's manifold spreads over the hits within this fraction of the base margin of its
 #: deepest point (the touching patch); farther speculative hits are represented by the deepest.
 TOUCH_FRACTION = 0.1
+
+#: The broad phase's Verlet skin, as a fraction of the smallest grown radius: larger, the list
+#: lasts more steps and holds more pairs that give no contact.
+SKIN_FRACTION = 0.25
 
 #: Below this estimated work (sphere-task units) the narrow phase runs serially.
 SERIAL_WORK = 4000
@@ -45,17 +49,15 @@ class Contacts(NamedTuple):
     feat: np.ndarray
 
 
-def _tasks(pa, pb, shift, n, n_walls):
-    # body-wall tasks for every body and wall, merged into the pair list in (a, b) order
-    if not n_walls:
-        return narrowphase.Tasks(pa, pb, shift)
-    wa = np.repeat(np.arange(n, dtype=np.int64), n_walls)
-    wb = np.tile(-1 - np.arange(n_walls, dtype=np.int64), n)
-    ta = np.concatenate([pa, wa])
-    tb = np.concatenate([pb, wb])
-    ts = np.concatenate([shift, np.zeros((len(wa), 3))])
-    order = np.lexsort((tb, ta))
-    return narrowphase.Tasks(ta[order], tb[order], np.ascontiguousarray(ts[order]))
+def _tasks(pa, pb, shift, n, n_walls, base, reach, wall_reach):
+    # zero reaches give every task exactly ``base`` (base + 0.0 is base)
+    if reach is None:
+        reach = np.zeros(n)
+    if wall_reach is None or wall_reach.shape[1] != n_walls:
+        wall_reach = np.zeros((n, n_walls))
+    return narrowphase.Tasks(*broadphase.task_list(pa, pb, shift, np.int64(n),
+                                                   np.int64(n_walls), float(base), reach,
+                                                   np.ascontiguousarray(wall_reach)))
 
 
 class Detector:
@@ -67,54 +69,103 @@ class Detector:
         #: with it disabled, only slower)
         self.reuse = Reuse(narrowphase.WORKERS)
         self._scratch = None
+        self._walled = (None, None)     # (geometry given, the same with wall grids)
+        self._slot_arrays = None
+        self._pairs = None              # (margin, positions, build radii, (pa, pb, shift))
 
     def _slots(self, ntask):
         need = ntask * narrowphase.MAX_PER_TASK
         if need > self.slot_capacity:
             self.slot_capacity = max(need, 2 * self.slot_capacity)
         cap = self.slot_capacity
-        return narrowphase.Slots(np.zeros(ntask, np.int64), np.empty((cap, 3)),
-                                 np.empty((cap, 3)), np.empty(cap), np.empty(cap, np.int64))
+        # the buffers are kept between detections: a fresh one of this size every step was
+        # paid again in page faults inside the narrow phase (a task writes its slots before
+        # anything reads them, so old contents never leak)
+        kept = self._slot_arrays
+        if kept is None or len(kept[2]) != cap:
+            kept = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty(cap),
+                    np.empty(cap, np.int64))
+            self._slot_arrays = kept
+        return narrowphase.Slots(np.zeros(ntask, np.int64), *kept)
 
-    def detect(self, geo, shape_of, pos, rot, margin, margin_fraction, domain, timings):
-        """All contacts of the state (``pos`` (N, 3), ``rot`` (N, 3, 3)) within ``margin``.
+    def _with_wall_grids(self, geo, pos, reach):
+        # baked once per geometry, when the body-wall tasks first pay for it; they only spare
+        # evaluations, so when (and around which bodies) they are baked changes no contact
+        given, walled = self._walled
+        if given is geo and walled is not geo:
+            return walled
+        walled = distgrid.with_wall_grids(geo, pos, reach)
+        self._walled = (geo, walled)
+        return walled
+
+    def _pair_list(self, pos, grown, margin, domain):
+        """The broad phase's candidate pairs, kept between detections as a Verlet list.
+
+        Built with each body's sphere grown by SKIN_FRACTION x the smallest radius (the
+        build spheres G_i, at positions x_i), the list holds every pair a fresh broad phase
+        would find as long as each body's current sphere (grown radius g_i, moved by d_i)
+        stays inside its build sphere, g_i + d_i <= G_i: a pair not listed had
+        |x_i - x_j| >= G_i + G_j + margin, so now it is at least (G_i - d_i) + (G_j - d_j) +
+        margin >= g_i + g_j + margin apart. The extra pairs it holds give the narrow phase
+        no hit (their gap exceeds their margin), so the contacts are the same bits as with
+        a fresh list; only the work changes. Periodic domains always rebuild (a pair's
+        nearest image can change)."""
+        keep = self._pairs
+        n = len(pos)
+        if (keep is not None and keep[0] == margin and len(keep[1]) == n
+                and not domain.periodic.any()):
+            x_ref, big = keep[1], keep[2]
+            moved = np.sqrt(((pos - x_ref) ** 2).sum(axis=1))
+            # the test keeps a relative 1e-9 in hand against round-off in the distances
+            if bool(np.all(grown + moved <= big * (1.0 - 1e-9))):
+                return keep[3]
+        skin = SKIN_FRACTION * float(grown.min()) if n and not domain.periodic.any() else 0.0
+        big = grown + skin
+        cutoff = 2.0 * float(big.max()) + margin
+        dlo, dhi = domain.grid_box()
+        lo, cell, dims, box = broadphase.grid_for(pos, cutoff, dlo, dhi, domain.periodic,
+                                                  max(64, 4 * n))
+        found = broadphase.pairs(pos, big, margin, lo, cell, dims, box, domain.periodic)
+        self._pairs = (margin, pos.copy(), big, found)
+        return found
+
+    def detect(self, geo, shape_of, pos, rot, margin, margin_fraction, domain, timings,
+               reach=None, wall_reach=None):
+        """All contacts of the state (``pos`` (N, 3), ``rot`` (N, 3, 3)) within each pair's
+        margin (:func:`peclet.dem.broadphase.task_list` of ``margin``, ``reach`` (N,) and
+        ``wall_reach`` (N, W); with ``reach`` None, ``margin`` for every pair).
         ``margin_fraction`` sets the manifold's touching patch; ``timings`` accumulates the
         broad and narrow phases' seconds."""
         t0 = time.perf_counter()
         n = len(pos)
         radii = geo.shape_rad[shape_of]
-        cutoff = 2.0 * float(radii.max()) + margin
+        # the broad phase's spheres grow by each body's reach: a pair is a candidate when
+        # its bounding spheres come within its own margin
+        grown = radii if reach is None else radii + reach
+        cutoff = 2.0 * float(grown.max()) + margin
         domain.check_cutoff(cutoff)
-        dlo, dhi = domain.grid_box()
-        lo, cell, dims, box = broadphase.grid_for(pos, cutoff, dlo, dhi, domain.periodic,
-                                                  max(64, 4 * n))
-        pa, pb, shift = broadphase.find_pairs(pos, radii, margin, lo, cell, dims, box,
-                                              domain.periodic)
-        tasks = _tasks(pa, pb, shift, n, len(geo.wall_op))
+        pa, pb, shift = self._pair_list(pos, grown, margin, domain)
+        # each pair's margin: its base plus what its two members can close within the step
+        tasks = _tasks(pa, pb, shift, n, len(geo.wall_op), margin, reach, wall_reach)
+        geo = self._with_wall_grids(geo, pos, cutoff)
         t1 = time.perf_counter()
         ntask = len(tasks.a)
         slots = self._slots(ntask)
         scale = float(geo.shape_rad.min())
-        prev, old, cur = self.reuse.prepare(geo, tasks)
+        prev, old, cur = self.reuse.prepare(geo, tasks, bool(np.any(geo.shape_kind == SCENE)))
         if self._scratch is None or self._scratch.lab.shape[1] < geo.max_hits:
             self._scratch = narrowphase.scratch_for(geo.max_hits)
-        narrowphase.narrow_phase(tasks, pos, rot, shape_of, geo, margin, (1e-6 * scale) ** 2,
+        narrowphase.narrow_phase(tasks, pos, rot, shape_of, geo, (1e-6 * scale) ** 2,
                                  TOUCH_FRACTION * margin_fraction * scale,
                                  _chunks(tasks, geo, shape_of), slots,
                                  self.reuse.delta(margin_fraction * scale), old, prev, cur,
                                  self._scratch)
         self.reuse.commit(cur)
-        count = slots.count
-        total = int(count.sum())
-        excl = np.concatenate([[0], np.cumsum(count)[:-1]]) if ntask else np.zeros(0, np.int64)
-        idx = (np.repeat(np.arange(ntask, dtype=np.int64) * narrowphase.MAX_PER_TASK - excl,
-                         count) + np.arange(total, dtype=np.int64))
+        c = Contacts(*narrowphase.gather(tasks, slots))
         t2 = time.perf_counter()
         timings["broad"] += t1 - t0
         timings["narrow"] += t2 - t1
-        return Contacts(np.repeat(tasks.a, count), np.repeat(tasks.b, count),
-                        np.repeat(tasks.shift, count, axis=0), slots.point[idx],
-                        slots.normal[idx], slots.gap[idx], slots.feat[idx])
+        return c
 
 
 def _chunks(tasks, geo, shape_of):
@@ -125,12 +176,11 @@ def _chunks(tasks, geo, shape_of):
     return 1 if work < SERIAL_WORK else 2
 
 
-def speculative_margin(base, radii, vel, omega, dt):
-    """The detection margin: ``base`` plus twice the largest surface speed (|v| + |omega| r)
-    times ``dt`` (None = 0), so that no approach within one step goes unseen."""
+def body_reach(radii, vel, omega, dt):
+    """Per body (N,): its largest surface speed ``|v| + |omega| r`` times ``dt``, what it can
+    move towards anything within one step (zeros for ``dt`` None)."""
     speed = np.sqrt((vel ** 2).sum(axis=1)) + np.sqrt((omega ** 2).sum(axis=1)) * radii
-    vmax = float(speed.max()) if len(speed) else 0.0
-    return base + 2.0 * vmax * (dt if dt is not None else 0.0)
+    return speed * (dt if dt is not None else 0.0)
 
 
 def lever_arms(c, pos):

@@ -82,3 +82,64 @@ def lower_bound(grid, off, dims, oh, qx, qy, qz):
     dz = qz - (oh[2] + k * h)
     # the distance rounded up, so that a round-off never makes the bound exceed phi
     return v - (math.sqrt(dx * dx + dy * dy + dz * dz) * (1.0 + 1e-12) + 1e-15)
+
+
+#: Walls get a distance grid when a detection holds at least this many body-wall tasks (below
+#: it, baking costs more than the evaluations it spares).
+WALL_GRID_MIN_TASKS = 6000
+#: A wall grid's node budget: this many nodes per body, at most WALL_GRID_MAX_NODES.
+WALL_GRID_NODES_PER_BODY = 40
+WALL_GRID_MAX_NODES = 2_000_000
+
+
+def bake_wall(ops, lk, lr, op_range, sign, centre, half, h):
+    """(values, dims (3,) int64, origin_and_h (4,)) of a grid of ``sign * phi`` of a
+    1-Lipschitz wall program (rows ``op_range``) on the cube of half side ``half`` about the
+    wall-frame point ``centre``, spacing ``h``. Baked with the sphere-traced lattice of
+    :func:`peclet.core.geom.kernels.bake_lattice`: its stored values of the sign of phi are
+    bounds of phi's magnitude, so after the sign flip every positive value is still a lower
+    bound of ``sign * phi`` (the only values :func:`lower_bound` uses). A point outside the
+    cube reads the nearest node: a valid, weaker bound."""
+    cells = max(1, int(math.ceil(2.0 * half / h)))
+    origin = np.asarray(centre, np.float64) - 0.5 * cells * h
+    dims = np.full(3, cells + 1, np.int64)
+    out = np.empty(int(np.prod(dims)))
+    bake_lattice(ops, lk, lr, np.int64(op_range[0]), np.int64(op_range[1]), origin,
+                 np.full(3, h), dims, BAND_CELLS * h, out)
+    if sign < 0.0:
+        np.negative(out, out=out)
+    return out, dims, np.array([origin[0], origin[1], origin[2], h])
+
+
+def with_wall_grids(geo, pos, reach):
+    """``geo`` with a distance grid for each 1-Lipschitz wall (``wall_grid_*`` fields), each
+    covering, in the wall's own frame at its current pose, a cube about the bodies' box
+    (``pos`` (N, 3)) grown by ``reach``; the cube's half side is the box's half diagonal, so a
+    wall that turns about the box's centre keeps the bodies inside it. The grids only spare
+    evaluations (a bound above the margin), so the contacts never depend on them; ``geo``
+    itself when there are too few body-wall tasks to pay for them."""
+    n, nw = len(pos), len(geo.wall_op)
+    if n * nw < WALL_GRID_MIN_TASKS or not np.any(geo.wall_lip):
+        return geo
+    lo = pos.min(axis=0) - reach
+    hi = pos.max(axis=0) + reach
+    centre_w = 0.5 * (lo + hi)
+    half = 0.5 * float(np.sqrt(((hi - lo) ** 2).sum()))
+    nodes = min(WALL_GRID_MAX_NODES, WALL_GRID_NODES_PER_BODY * n)
+    h = 2.0 * half / max(2.0, nodes ** (1.0 / 3.0) - 1.0)
+    grids, offs = [], []
+    dims = np.zeros((nw, 3), np.int64)
+    oh = np.ones((nw, 4))
+    total = len(geo.grid)
+    for w in range(nw):
+        offs.append(total)
+        if not geo.wall_lip[w]:
+            continue
+        c = geo.wall_rot[w].T @ (centre_w - geo.wall_pos[w])
+        g, dims[w], oh[w] = bake_wall(geo.ops, geo.lk, geo.lr, geo.wall_op[w],
+                                      float(geo.wall_sign[w]), c, half, h)
+        grids.append(g)
+        total += len(g)
+    return geo._replace(grid=np.concatenate([geo.grid] + grids),
+                        wall_grid_off=np.asarray(offs, np.int64), wall_grid_dims=dims,
+                        wall_grid_oh=oh)

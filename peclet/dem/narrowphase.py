@@ -12,7 +12,8 @@ Every task is one pair: (a, b) with b >= 0 a body (image shift given), or b = -1
 Normals are the analytic gradients of the tree (normalised), rotated to the world frame; the
 stored normal always points from b to a (it pushes a away from b). ``gap`` is the signed
 separation (< 0 is a penetration of depth -gap); the contact point is midway between the two
-surfaces. Hits within ``margin`` are kept (speculative contacts).
+surfaces. Hits within the task's margin are kept (speculative contacts; each pair has its
+own, see :func:`peclet.dem.broadphase.task_list`).
 
 Probes are grouped into clusters with a bounding sphere, clusters into super-clusters. When the
 tree's field is 1-Lipschitz, phi grows by at most the distance travelled, so a lower bound of
@@ -56,11 +57,13 @@ WORKERS = 32
 
 
 class Tasks(NamedTuple):
-    """Candidate pairs: body ``a`` (T,), body ``b`` (T,) (a wall is -1 - index) and the image
-    ``shift`` (T, 3) added to b's position (periodic minimum image; zero for walls)."""
+    """Candidate pairs: body ``a`` (T,), body ``b`` (T,) (a wall is -1 - index), the image
+    ``shift`` (T, 3) added to b's position (periodic minimum image; zero for walls) and each
+    pair's speculative ``margin`` (T,): its hits with a gap below it are kept."""
     a: np.ndarray
     b: np.ndarray
     shift: np.ndarray
+    margin: np.ndarray
 
 
 class Scratch(NamedTuple):
@@ -319,8 +322,8 @@ def _direction(t, d, old_t, prev, cur, xa, Ra, s, so, geo, zero, tree, nsign, fb
 
 
 @njit(cache=True)
-def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touch, slots,
-            delta, old, prev, cur, scratch):
+def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots, delta, old,
+            prev, cur, scratch):
     """Worker ``worker`` of ``nw``: the chunks worker, worker + nw, ... of ``size`` tasks
     (interleaved, so that the workers' loads even out); gathers each task's hits and reduces
     them into its own slots. ``old`` (T,): each task's index in ``prev`` (-1: none); the
@@ -358,10 +361,41 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
         for t in range(ch * size, min(ntask, (ch + 1) * size)):
             a = tasks.a[t]
             b = tasks.b[t]
+            margin = tasks.margin[t]
             sa = shape_of[a]
+            nh = zero_i
+            if b >= 0 and shape_kind[sa] == 0 and shape_kind[shape_of[b]] == 0:
+                # two spheres: the centre line, read straight from the arrays (the views and
+                # program tuples of the other cases cost more than this whole test)
+                sb = shape_of[b]
+                dx = pos[a, 0] - (pos[b, 0] + tasks.shift[t, 0])
+                dy = pos[a, 1] - (pos[b, 1] + tasks.shift[t, 1])
+                dz = pos[a, 2] - (pos[b, 2] + tasks.shift[t, 2])
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                gap = dist - shape_rad[sa] - shape_rad[sb]
+                if gap < margin:
+                    if dist > 0.0:
+                        nx = dx / dist
+                        ny = dy / dist
+                        nz = dz / dist
+                    else:
+                        nx, ny, nz = 0.0, 1.0, 0.0
+                    h = shape_rad[sa] + 0.5 * gap
+                    hits[0, 0] = pos[a, 0] - h * nx
+                    hits[0, 1] = pos[a, 1] - h * ny
+                    hits[0, 2] = pos[a, 2] - h * nz
+                    hits[0, 3] = nx
+                    hits[0, 4] = ny
+                    hits[0, 5] = nz
+                    hits[0, 6] = gap
+                    hits[0, 7] = 0.0
+                    nh = one_i
+                slots.count[t] = reduce_hits(hits, nh, lab, reps, tol2, touch,
+                                             t * MAX_PER_TASK, slots.point, slots.normal,
+                                             slots.gap, slots.feat)
+                continue
             xa = pos[a]
             Ra = rot[a]
-            nh = zero_i
             ot = old[t]
             if b >= 0:
                 sb = shape_of[b]
@@ -370,30 +404,7 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                 Rb = rot[b]
                 prog_a = (ops, blocks, pboff[sa], pob[sa], pdims[sa], sop[sa, 0], sop[sa, 1])
                 prog_b = (ops, blocks, pboff[sb], pob[sb], pdims[sb], sop[sb, 0], sop[sb, 1])
-                if shape_kind[sa] == 0 and shape_kind[sb] == 0:
-                    dx = xa[0] - xb[0]
-                    dy = xa[1] - xb[1]
-                    dz = xa[2] - xb[2]
-                    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                    gap = dist - shape_rad[sa] - shape_rad[sb]
-                    if gap < margin:
-                        if dist > 0.0:
-                            nx = dx / dist
-                            ny = dy / dist
-                            nz = dz / dist
-                        else:
-                            nx, ny, nz = 0.0, 1.0, 0.0
-                        h = shape_rad[sa] + 0.5 * gap
-                        hits[0, 0] = xa[0] - h * nx
-                        hits[0, 1] = xa[1] - h * ny
-                        hits[0, 2] = xa[2] - h * nz
-                        hits[0, 3] = nx
-                        hits[0, 4] = ny
-                        hits[0, 5] = nz
-                        hits[0, 6] = gap
-                        hits[0, 7] = 0.0
-                        nh = 1
-                elif shape_kind[sa] == 0:
+                if shape_kind[sa] == 0:
                     nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb, prog_b,
                                            1.0, shape_lip[sb], shape_rad[sb], 1.0, zero_i, margin,
                                            margin, lk, lr, grid, goff[sb], gdims[sb], goh[sb],
@@ -423,14 +434,16 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
                 # the wall at its pose (identity for a wall that never moved)
                 xw = geo.wall_pos[w]
                 Rw = geo.wall_rot[w]
+                # its distance grid (of the signed field; dims 0: none) bounds it cheaply
+                wgo, wgd, wgh = geo.wall_grid_off[w], geo.wall_grid_dims[w], geo.wall_grid_oh[w]
                 if shape_kind[sa] == 0:
                     nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xw, Rw,
                                            prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
-                                           1.0, zero_i, margin, margin, lk, lr, grid, zero_i,
-                                           nogrid, origin, st, hits, nh)
+                                           1.0, zero_i, margin, margin, lk, lr, grid, wgo,
+                                           wgd, wgh, st, hits, nh)
                 else:
                     tree = (xw, Rw, prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
-                            grid, zero_i, nogrid, origin)
+                            grid, wgo, wgd, wgh)
                     nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, b, geo, origin,
                                           tree, 1.0, zero_i, margin, delta, st, hits, nh, pose,
                                           lpos, lend)
@@ -440,13 +453,13 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, margin, tol2, touc
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, slots, delta,
-                 old, prev, cur, scratch):
+def narrow_phase(tasks, pos, rot, shape_of, geo, tol2, touch, chunks, slots, delta, old, prev,
+                 cur, scratch):
     """Contacts of every task into its own ``MAX_PER_TASK`` slots; ``slots.count[t]`` = used.
 
     ``tasks`` a :class:`Tasks`; ``pos`` (N, 3) and ``rot`` (N, 3, 3) the bodies' centres and
     home -> world rotations, ``shape_of`` (N,) their shape ids; ``geo`` the
-    :class:`peclet.dem.shapes.Geometry`; hits within ``margin`` are kept; ``tol2`` and ``touch``
+    :class:`peclet.dem.shapes.Geometry`; hits within the task's margin are kept; ``tol2`` and ``touch``
     tune the manifold reduction; ``slots`` a :class:`Slots`. Reuse between steps
     (:mod:`peclet.dem.reuse`): ``old`` (T,) each task's index in ``prev`` (last step's
     :class:`peclet.dem.reuse.ReuseCache`, -1: none), ``cur`` this step's (filled here),
@@ -463,4 +476,35 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, margin, tol2, touch, chunks, sl
         # k is unsigned in the parallel loop's body and signed where Numba types the call:
         # one int64 signature instead of two compilations of the whole worker
         _worker(np.int64(k), np.int64(nw), np.int64(TASK_CHUNK), tasks, pos, rot, shape_of,
-                geo, margin, tol2, touch, slots, delta, old, prev, cur, scratch)
+                geo, tol2, touch, slots, delta, old, prev, cur, scratch)
+
+
+@njit(cache=True)
+def gather(tasks, slots):
+    """The contacts of :func:`narrow_phase` packed in task order: (a, b, shift (n, 3), point
+    (n, 3), normal (n, 3), gap, feat), one row per used slot."""
+    ntask = tasks.a.shape[0]
+    total = 0
+    for t in range(ntask):
+        total += slots.count[t]
+    a = np.empty(total, np.int64)
+    b = np.empty(total, np.int64)
+    shift = np.empty((total, 3))
+    point = np.empty((total, 3))
+    normal = np.empty((total, 3))
+    gap = np.empty(total)
+    feat = np.empty(total, np.int64)
+    k = 0
+    for t in range(ntask):
+        for u in range(slots.count[t]):
+            o = t * MAX_PER_TASK + u
+            a[k] = tasks.a[t]
+            b[k] = tasks.b[t]
+            for e in range(3):
+                shift[k, e] = tasks.shift[t, e]
+                point[k, e] = slots.point[o, e]
+                normal[k, e] = slots.normal[o, e]
+            gap[k] = slots.gap[o]
+            feat[k] = slots.feat[o]
+            k += 1
+    return a, b, shift, point, normal, gap, feat

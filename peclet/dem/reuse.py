@@ -118,13 +118,19 @@ class Reuse:
         code = ((np.sign(tasks.shift) + 1.0) @ np.array([1.0, 3.0, 9.0])).astype(np.int64)
         return ((tasks.a << 23) + (tasks.b + (1 << 22))) * 27 + code
 
-    def prepare(self, geo, tasks):
+    def prepare(self, geo, tasks, lists=True):
         """(prev, index, cur): last step's cache, for each task the index of the same task in
-        it (-1: none) and a cache for this step's tasks to be filled by the narrow phase."""
+        it (-1: none) and a cache for this step's tasks to be filled by the narrow phase.
+        ``lists`` False (no composed shape in the geometry): an empty cache."""
         if geo is not self._geo:
             self.reset()
             self._geo = geo
         ntask = len(tasks.a)
+        if not lists:
+            # nothing to list (only spheres: no task scans probes); an empty cache spares the
+            # per-task arrays, tens of megabytes a step on a large bed
+            self._pending = np.zeros(0, np.int64)
+            return self.prev, np.full(ntask, -1, np.int64), empty_cache(0, 1, self.workers)
         keys = self.keys_of(tasks)
         index = np.full(ntask, -1, np.int64)
         if len(self._keys) and ntask:

@@ -94,7 +94,10 @@ class Geometry(NamedTuple):
     wall's pose (tree -> world: p = R p_tree + t), filled in place from
     :class:`peclet.dem.wallmotion.WallMotion` before every detection (identity for a wall that
     never moved), so that the geometry keeps its identity (the probe-list reuse is tied to it);
-    ``max_hits``: a task's hit buffer size.
+    ``max_hits``: a task's hit buffer size; ``wall_grid_off`` (W,), ``wall_grid_dims``
+    (W, 3) (0 = none) and ``wall_grid_oh`` (W, 4): each wall's distance grid of its signed
+    field in ``grid``, in the wall's own frame (none as built; a detection of many bodies
+    adds them, :func:`peclet.dem.distgrid.with_wall_grids`).
     All home-frame lengths; the bounds are inflated by a relative 1e-12 (+ 1e-15) so that a
     round-off never makes a culled sphere miss a point it contains."""
     shape_kind: np.ndarray
@@ -134,6 +137,9 @@ class Geometry(NamedTuple):
     shape_pob: np.ndarray
     shape_pdims: np.ndarray
     max_hits: int
+    wall_grid_off: np.ndarray
+    wall_grid_dims: np.ndarray
+    wall_grid_oh: np.ndarray
 
 
 def _tree(node_ints, node_reals, root):
@@ -330,4 +336,7 @@ def build_geometry(shapes, walls):
         wall_rot=np.ascontiguousarray(np.tile(np.eye(3), (len(walls), 1, 1))),
         ops=ops, lk=lk, lr=lr, block_range=block_range,
         shape_pboff=pboff, shape_pob=pob, shape_pdims=pdims,
-        max_hits=2 * maxm + 2)
+        max_hits=2 * maxm + 2,
+        wall_grid_off=np.zeros(len(walls), np.int64),
+        wall_grid_dims=np.zeros((len(walls), 3), np.int64),
+        wall_grid_oh=np.ones((len(walls), 4)))

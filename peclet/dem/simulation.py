@@ -31,8 +31,8 @@ from peclet.core.geom.transforms import quats_to_matrices
 from peclet.core.validation import PecletArgumentError, check_array, check_float, check_int
 from peclet.dem import broadphase, narrowphase, persistence, solver
 from peclet.dem.bodies import Bodies
-from peclet.dem.contacts import (Detector, WarmStart, lever_arms, listing, overlap_pairs,
-                                 speculative_margin)
+from peclet.dem.contacts import (Detector, WarmStart, body_reach, lever_arms, listing,
+                                 overlap_pairs)
 from peclet.dem.domain import Domain
 from peclet.dem.materials import (MAX_MATERIAL_ID, SIMULATION_DEFAULT, MaterialTable,
                                   clamp_to_cone, material, per_contact)
@@ -43,8 +43,9 @@ from peclet.dem.rigid import advance_all
 from peclet.dem.scales import Scales
 from peclet.dem.shapes import analytic_wall, build_geometry, scene_shape, sphere_shape
 
-#: Default speculative margin, as a fraction of the smallest bounding radius in use; the step
-#: adds ``2 * max speed * dt`` so that no approach within one step goes unseen.
+#: Default base speculative margin, as a fraction of the smallest bounding radius in use; each
+#: pair adds what its two members can travel in the step (``(s_a + s_b) dt``, s = |v| + |omega| r)
+#: so that no approach within one step goes unseen.
 DEFAULT_MARGIN_FRACTION = 0.05
 
 #: Gaps below this fraction of the smallest bounding radius count as touching (see _slop).
@@ -488,23 +489,31 @@ class Simulation:
         if self._materials.active():
             self._materials.check_declared(b.n, self._material)
 
-    def _margin(self, vel, omega, dt, pos=None):
+    def _margins(self, vel, omega, dt, pos=None):
+        """(base, reach (N,) or None, wall_reach (N, W) or None) for :meth:`_detect`: each
+        pair's margin is the base plus what its two members can close in ``dt``
+        (:func:`peclet.dem.broadphase.task_list`); a moving wall's surface speed near a body
+        enters that body's wall pairs like a body's own speed."""
         base = self._margin_fraction * float(np.min([s.radius for s in
                                                      self._shape_table()[0]]))
-        m = speculative_margin(base, self._radii(), vel, omega, dt)
-        if self._wallmo.moving() and dt is not None:
-            # a moving wall's surface speed at any body enters like a body's
+        if dt is None:
+            return base, None, None
+        radii = self._radii()
+        reach = body_reach(radii, vel, omega, dt)
+        wall_reach = None
+        if self._wallmo.moving():
             p = self._bodies.pos if pos is None else pos
-            m += 2.0 * self._wallmo.speed_bound(p, self._radii()) * dt
-        return m
+            wall_reach = self._wallmo.surface_speeds(p, radii) * dt
+        return base, reach, wall_reach
 
-    def _detect(self, pos, rot, margin):
+    def _detect(self, pos, rot, margin, reach=None, wall_reach=None):
         geo = self._geometry()
         if self._wallmo.n:
             geo.wall_pos[:] = self._wallmo.pos
             geo.wall_rot[:] = self._wallmo.rotations()
         return self._detector.detect(geo, self._shape_table()[1], pos, rot, margin,
-                                     self._margin_fraction, self._domain, self.timings)
+                                     self._margin_fraction, self._domain, self.timings,
+                                     reach, wall_reach)
 
     def _slop(self):
         # a gap below the slop counts as touching in the velocity solve: no speculative
@@ -518,8 +527,8 @@ class Simulation:
         if b.n == 0 or not self._shapes:
             return None
         pos = self._domain.wrap(b.pos.copy())
-        return self._detect(pos, quats_to_matrices(b.quat), self._margin(b.vel, b.omega,
-                                                                          self._dt, pos))
+        return self._detect(pos, quats_to_matrices(b.quat),
+                            *self._margins(b.vel, b.omega, self._dt, pos))
 
     def detect_contacts(self):
         """Contacts of the CURRENT state (nothing advances), sorted by (body_a, body_b,
@@ -564,7 +573,7 @@ class Simulation:
                 wi = solver.world_inv_inertias(q, inv_inertia)
                 w += dt * np.einsum("nij,nj->ni", wi, self._ext_torque)
         self._guard(x, q, v, w)                     # before any kernel sees a bad value
-        c = self._detect(x, quats_to_matrices(q), self._margin(v, w, dt, x))
+        c = self._detect(x, quats_to_matrices(q), *self._margins(v, w, dt, x))
         t1 = time.perf_counter()
         keys = WarmStart.keys_of(c, len(self._walls))
         t1v, t2v = solver.tangent_basis(c.normal)
@@ -638,8 +647,7 @@ class Simulation:
             x = self._domain.wrap(b.pos.copy())
             q = b.quat.copy()
             self._guard(x, q, b.vel, b.omega)
-            c = self._detect(x, quats_to_matrices(q), self._margin(b.vel * 0.0, b.omega * 0.0,
-                                                                   None))
+            c = self._detect(x, quats_to_matrices(q), self._margins(b.vel, b.omega, None)[0])
             if not len(c.a) or not np.any(c.gap < 0.0):
                 break
             t1v, t2v = solver.tangent_basis(c.normal)

@@ -109,19 +109,16 @@ class WallMotion:
         r = points - self.center[wall]
         return self.vel[wall] + np.cross(self.omega[wall], r)
 
-    def speed_bound(self, pos, radii):
-        """The largest surface speed of any moving wall at any body's bounding sphere:
-        max over walls and bodies of |v + omega x (x - c)| + |omega| r (0 with none moving)."""
-        if not self.moving() or len(pos) == 0:
-            return 0.0
-        best = 0.0
+    def surface_speeds(self, pos, radii):
+        """(N, W): the largest surface speed of each wall over each body's bounding sphere,
+        ``|v + omega x (x - c)| + |omega| r`` (zero for a wall that does not move)."""
+        out = np.zeros((len(pos), self.n))
         for i in range(self.n):
             if not (np.any(self.vel[i] != 0.0) or np.any(self.omega[i] != 0.0)):
                 continue
             u = self.vel[i] + np.cross(self.omega[i], pos - self.center[i])
-            s = np.sqrt((u * u).sum(axis=1)) + float(np.linalg.norm(self.omega[i])) * radii
-            best = max(best, float(s.max()))
-        return best
+            out[:, i] = np.sqrt((u * u).sum(axis=1)) + float(np.linalg.norm(self.omega[i])) * radii
+        return out
 
     def advance(self, dt):
         """Move every moving wall by its velocity over ``dt`` (see the module notes)."""

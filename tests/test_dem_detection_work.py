@@ -1,0 +1,202 @@
+"""Detection does less work without changing a contact (issue 27 item 3, issue 22's stir).
+
+- per-pair margins: a pair's speculative margin is its base plus what ITS two members (or the
+  body and a moving wall near it) can close in a step, not the fastest body's speed;
+- the broad phase's Verlet list: kept while every body stays inside its build sphere;
+- wall distance grids: bounds that spare evaluations of a wall's tree;
+- the parallel broad phase: the same arrays as the serial one.
+
+The three work savers must leave every contact and every bit of a run as they were; the tests
+run the same stirred column with each of them disabled and compare state hashes.
+"""
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from peclet.dem import Simulation, broadphase, contacts, distgrid
+from peclet.core.geom.kernels import eval_point
+from peclet.core.geom.transforms import quats_to_matrices
+from peclet.packing.stir import StirSpec, StirredColumn
+
+CAP = int(numba.config.NUMBA_NUM_THREADS)
+
+
+def _spheres(sim, pos, vel, r=0.5):
+    sid = sim.add_sphere_shape(r)
+    n = len(pos)
+    sim.set_positions(np.asarray(pos, float))
+    sim.set_shape_ids(np.full(n, sid, np.int32))
+    m = 4.0 / 3.0 * math.pi * r ** 3
+    sim.set_inv_mass(np.full(n, 1.0 / m))
+    sim.set_inv_inertia(np.full((n, 3), 1.0 / (0.4 * m * r * r)))
+    sim.set_velocities(np.asarray(vel, float))
+    return sim
+
+
+def _new(n):
+    sim = Simulation(n)
+    sim.set_gravity(0.0, 0.0, 0.0)
+    sim.set_dt(1e-2)
+    return sim
+
+
+def test_a_fast_body_does_not_widen_the_margin_of_a_slow_pair():
+    # two slow spheres 0.1 apart, one fast sphere far away: with one global margin
+    # (base + 2 v_max dt = 0.025 + 0.2) the slow pair would be a speculative contact
+    sim = _new(3)
+    _spheres(sim, [(0.0, 0.0, 0.0), (1.1, 0.0, 0.0), (20.0, 0.0, 0.0)],
+             [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (10.0, 0.0, 0.0)])
+    assert len(sim.detect_contacts()["body_a"]) == 0
+    # the fast body's own pairs do get its reach (0.025 + 10 x 0.01): a sphere 0.1 from it
+    sim2 = _new(2)
+    _spheres(sim2, [(0.0, 0.0, 0.0), (1.1, 0.0, 0.0)], [(0.0, 0.0, 0.0), (-10.0, 0.0, 0.0)])
+    c = sim2.detect_contacts()
+    assert len(c["body_a"]) == 1 and c["depth"][0] == pytest.approx(-0.1)
+
+
+def test_a_moving_wall_widens_only_the_margins_of_bodies_it_can_reach():
+    from peclet.core.geom import SceneBuilder
+    sim = _new(3)
+    b = SceneBuilder()
+    root = b.add_leaf("box", [5.0, 0.5, 5.0])
+    ni, nr, _, _ = b.encode()
+    w = sim.add_analytic_wall(ni, nr, root, False, 0.0, 0.5)
+    # the plate (top face at y = 0.5) turns about the z axis through its end x = -5 at
+    # 4 rad per unit time: its surface moves at 4 |x + 5|, 0.4 per step at the far end and
+    # 4 |omega| r more over a sphere (0.089 with the base margin near the axis). Spheres sit
+    # 0.1 above it at both ends, and a third 0.1 beside the
+    # first: only the far sphere's wall pair may be speculative.
+    _spheres(sim, [(-4.9, 1.1, 0.0), (4.5, 1.1, 0.0), (-4.9, 1.1, 1.1)],
+             [(0.0, 0.0, 0.0)] * 3)
+    sim.set_wall_velocity(w, (0.0, 0.0, 0.0), (0.0, 0.0, 4.0), (-5.0, 0.0, 0.0))
+    c = sim.detect_contacts()
+    assert list(zip(c["body_a"].tolist(), c["body_b"].tolist())) == [(1, -1)]
+    assert c["depth"][0] == pytest.approx(-0.1, abs=1e-9)
+
+
+def _column(seed=3):
+    spec = StirSpec(grain_radius=1.0, revolutions=0.05, settle=0.2, frames=0,
+                    seed=seed).checked()
+    col = StirredColumn(spec)
+    sim = col.build()
+    return spec, col, sim
+
+
+def _stir_hash(steps, *, skin=True, wall_grids=True, threads=1, monkeypatch=None):
+    numba.set_num_threads(threads)
+    try:
+        spec, col, sim = _column()
+        det = sim._detector
+        builds = [0]
+        real = broadphase.pairs
+
+        def counted(*a):
+            builds[0] += 1
+            return real(*a)
+
+        monkeypatch.setattr(broadphase, "pairs", counted)
+        monkeypatch.setattr(distgrid, "WALL_GRID_MIN_TASKS", 1000 if wall_grids else 10 ** 12)
+        for k in range(steps):
+            if k == steps // 3:
+                col.turn(spec.omega)
+            if not skin:
+                det._pairs = None                # a fresh broad phase every step
+            sim.step()
+        walled = det._walled[1]
+        has_grids = walled is not None and bool(np.any(walled.wall_grid_dims[:, 0] > 0))
+        return sim.state_hash(), builds[0], has_grids
+    finally:
+        numba.set_num_threads(CAP)
+
+
+def test_verlet_list_and_wall_grids_change_no_bit_of_a_stirred_column(monkeypatch):
+    steps = 90
+    ref, builds_ref, grids_ref = _stir_hash(steps, skin=False, wall_grids=False,
+                                            monkeypatch=monkeypatch)
+    fast, builds, grids = _stir_hash(steps, monkeypatch=monkeypatch)
+    assert builds_ref == steps and not grids_ref
+    assert builds < steps                       # the list was kept on some steps
+    assert grids                                # and the walls had grids
+    assert fast == ref
+    if CAP >= 2:
+        fast2, _, _ = _stir_hash(steps, threads=2, monkeypatch=monkeypatch)
+        assert fast2 == ref
+
+
+def _wall_program(sim, w):
+    geo = sim._geometry()
+    return geo, geo.wall_op[w]
+
+
+def test_wall_grid_bounds_never_exceed_the_signed_field():
+    # the column (inverted: free space inside) and the impeller, at a turned pose
+    spec, col, sim = _column()
+    col.turn(spec.omega)
+    for _ in range(5):
+        sim.step()
+    geo = sim._geometry()
+    geo.wall_pos[:] = sim._wallmo.pos
+    geo.wall_rot[:] = sim._wallmo.rotations()
+    walled = distgrid.with_wall_grids(geo._replace(), np.asarray(sim._bodies.pos), 1.0) \
+        if len(sim._bodies.pos) * len(geo.wall_op) >= distgrid.WALL_GRID_MIN_TASKS else None
+    if walled is None:
+        walled = _forced_grids(geo, np.asarray(sim._bodies.pos))
+    rng = np.random.default_rng(1)
+    st = np.empty((64, 16))
+    checked = 0
+    tight = 0
+    for w in range(len(geo.wall_op)):
+        assert walled.wall_grid_dims[w, 0] > 0
+        o0, o1 = geo.wall_op[w]
+        sgn = geo.wall_sign[w]
+        pts = rng.uniform(-25.0, 25.0, (4000, 3)) + np.array([0.0, 12.0, 0.0])
+        for p in pts:
+            q = geo.wall_rot[w].T @ (p - geo.wall_pos[w])
+            exact = sgn * eval_point(geo.ops, geo.lk, geo.lr, o0, o1, q[0], q[1], q[2], st)[0]
+            low = distgrid.lower_bound(walled.grid, walled.wall_grid_off[w],
+                                       walled.wall_grid_dims[w], walled.wall_grid_oh[w],
+                                       q[0], q[1], q[2])
+            assert low <= exact
+            checked += 1
+            tight += low > exact - 2.0
+    assert checked == 8000
+    assert tight > 2000                          # the bounds are useful, not just -inf
+
+
+def _forced_grids(geo, pos):
+    old = distgrid.WALL_GRID_MIN_TASKS
+    distgrid.WALL_GRID_MIN_TASKS = 0
+    try:
+        return distgrid.with_wall_grids(geo, pos, 1.0)
+    finally:
+        distgrid.WALL_GRID_MIN_TASKS = old
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_parallel_broad_phase_gives_the_serial_arrays(periodic):
+    rng = np.random.default_rng(5)
+    n = 5000
+    box_l = 20.0
+    pos = rng.uniform(0.0, box_l, (n, 3))
+    radius = rng.uniform(0.2, 0.5, n)
+    per = np.array([periodic] * 3)
+    lo, cell, dims, box = broadphase.grid_for(pos, 2 * 0.5 + 0.1, np.zeros(3),
+                                              np.full(3, box_l), per, 4 * n)
+    a = broadphase.find_pairs(pos, radius, 0.1, lo, cell, dims, box, per)
+    b = broadphase.find_pairs_parallel(pos, radius, 0.1, lo, cell, dims, box, per)
+    assert len(a[0]) > 1000
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+
+
+def test_pair_list_is_rebuilt_when_a_body_leaves_its_build_sphere():
+    sim = _new(2)
+    _spheres(sim, [(0.0, 0.0, 0.0), (3.0, 0.0, 0.0)], [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
+    assert len(sim.detect_contacts()["body_a"]) == 0
+    assert sim._detector._pairs is not None      # a list was built (and is kept)
+    # teleport body 1 next to body 0: the kept list (no pair) must not be trusted
+    sim.set_positions(np.array([[0.0, 0.0, 0.0], [1.01, 0.0, 0.0]]))
+    c = sim.detect_contacts()
+    assert len(c["body_a"]) == 1 and c["depth"][0] == pytest.approx(-0.01, abs=1e-12)
