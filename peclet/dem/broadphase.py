@@ -246,12 +246,13 @@ def grid_for(pos, cutoff, domain_lo, domain_hi, periodic, max_cells):
 
 
 @njit(cache=True)
-def task_list(pa, pb, shift, n, n_walls, base, reach, wall_reach):
+def task_list(pa, pb, shift, n, n_walls, base, reach, wall_reach, frozen, wall_static):
     """The narrow phase's tasks: the pairs ``(pa, pb, shift)`` of :func:`find_pairs` and one
     task per body and wall (b = -1 - w), in (a, b) order (a body's wall tasks first, b
     ascending), with each task's margin ``base + (reach[a] + reach[b])`` for two bodies and
-    ``base + (reach[a] + wall_reach[a, w])`` against wall w. Returns (a, b, shift (T, 3),
-    margin)."""
+    ``base + (reach[a] + wall_reach[a, w])`` against wall w. Pairs of two ``frozen`` bodies
+    (sleepers, :mod:`peclet.dem.sleep`) and a frozen body's tasks with a ``wall_static`` wall
+    are left out. Returns (a, b, shift (T, 3), margin)."""
     npair = pa.shape[0]
     total = npair + n * n_walls
     ta = np.empty(total, np.int64)
@@ -262,16 +263,19 @@ def task_list(pa, pb, shift, n, n_walls, base, reach, wall_reach):
     k = 0
     for a in range(n):
         for w in range(n_walls - 1, -1, -1):
+            if frozen[a] and wall_static[w]:
+                continue
             ta[k] = a
             tb[k] = -1 - w
             tm[k] = base + (reach[a] + wall_reach[a, w])
             k += 1
         while u < npair and pa[u] == a:
-            ta[k] = a
-            tb[k] = pb[u]
-            for e in range(3):
-                ts[k, e] = shift[u, e]
-            tm[k] = base + (reach[a] + reach[pb[u]])
-            k += 1
+            if not (frozen[a] and frozen[pb[u]]):
+                ta[k] = a
+                tb[k] = pb[u]
+                for e in range(3):
+                    ts[k, e] = shift[u, e]
+                tm[k] = base + (reach[a] + reach[pb[u]])
+                k += 1
             u += 1
-    return ta, tb, ts, tm
+    return ta[:k], tb[:k], ts[:k], tm[:k]

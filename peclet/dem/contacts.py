@@ -49,15 +49,20 @@ class Contacts(NamedTuple):
     feat: np.ndarray
 
 
-def _tasks(pa, pb, shift, n, n_walls, base, reach, wall_reach):
+def _tasks(pa, pb, shift, n, n_walls, base, reach, wall_reach, frozen, wall_static):
     # zero reaches give every task exactly ``base`` (base + 0.0 is base)
     if reach is None:
         reach = np.zeros(n)
     if wall_reach is None or wall_reach.shape[1] != n_walls:
         wall_reach = np.zeros((n, n_walls))
+    if frozen is None:
+        frozen = np.zeros(n, np.bool_)
+    if wall_static is None:
+        wall_static = np.ones(n_walls, np.bool_)
     return narrowphase.Tasks(*broadphase.task_list(pa, pb, shift, np.int64(n),
                                                    np.int64(n_walls), float(base), reach,
-                                                   np.ascontiguousarray(wall_reach)))
+                                                   np.ascontiguousarray(wall_reach), frozen,
+                                                   wall_static))
 
 
 class Detector:
@@ -130,12 +135,14 @@ class Detector:
         return found
 
     def detect(self, geo, shape_of, pos, rot, margin, margin_fraction, domain, timings,
-               reach=None, wall_reach=None):
+               reach=None, wall_reach=None, frozen=None, wall_static=None):
         """All contacts of the state (``pos`` (N, 3), ``rot`` (N, 3, 3)) within each pair's
         margin (:func:`peclet.dem.broadphase.task_list` of ``margin``, ``reach`` (N,) and
         ``wall_reach`` (N, W); with ``reach`` None, ``margin`` for every pair).
         ``margin_fraction`` sets the manifold's touching patch; ``timings`` accumulates the
-        broad and narrow phases' seconds."""
+        broad and narrow phases' seconds. ``frozen`` (N,) bool (sleepers) and ``wall_static``
+        (W,) bool: the pairs of two frozen bodies and of a frozen body with a static wall are
+        not examined (None: none frozen)."""
         t0 = time.perf_counter()
         n = len(pos)
         radii = geo.shape_rad[shape_of]
@@ -146,7 +153,8 @@ class Detector:
         domain.check_cutoff(cutoff)
         pa, pb, shift = self._pair_list(pos, grown, margin, domain)
         # each pair's margin: its base plus what its two members can close within the step
-        tasks = _tasks(pa, pb, shift, n, len(geo.wall_op), margin, reach, wall_reach)
+        tasks = _tasks(pa, pb, shift, n, len(geo.wall_op), margin, reach, wall_reach, frozen,
+                       wall_static)
         geo = self._with_wall_grids(geo, pos, cutoff)
         t1 = time.perf_counter()
         ntask = len(tasks.a)

@@ -29,6 +29,9 @@ _V3_KEYS = ("scales",)
 #: (peclet/dem/hertz.py): its moduli per material id and the tangential history, so a Hertz
 #: run resumes bitwise. A save without them loads as before.
 _HERTZ_KEYS = ("hertz_moduli", "hertz_keys", "hertz_xi", "hertz_n")
+#: Present (all three) only in a save of a simulation with sleeping on (peclet/dem/sleep.py):
+#: its threshold and each body's flag and count, so that a sleeping run resumes bitwise.
+_SLEEP_KEYS = ("sleep_params", "sleep_asleep", "sleep_count")
 _WHAT = "a peclet Simulation save"
 #: A saved quaternion is unit to a few ulps; one farther than this was not written by save.
 _UNIT_TOL = 1e-12
@@ -68,6 +71,8 @@ def to_arrays(sim):
     hz = sim._hertz
     if hz.moduli or len(hz.keys):
         d.update(zip(_HERTZ_KEYS, hz.arrays()))
+    if sim._sleep.on:
+        d.update(zip(_SLEEP_KEYS, sim._sleep.arrays()))
     for i, s in enumerate(sim._shapes):
         scene = isinstance(s, SceneShape)
         d[f"shape{i}_kind"] = np.int64(1 if scene else 0)
@@ -143,6 +148,8 @@ def _required_keys(d):
             keys.update(_V3_KEYS)
     if "hertz_moduli" in d:
         keys.update(_HERTZ_KEYS)
+    if "sleep_params" in d:
+        keys.update(_SLEEP_KEYS)
     for i in range(n_shapes):
         keys.update({f"shape{i}_kind", f"shape{i}_radius"})
         if f"shape{i}_kind" in d and d[f"shape{i}_kind"].shape == () \
@@ -210,6 +217,10 @@ def _rebuild(cls, d):
             sim._scales.values = sim._scales.checked(sc, sim._bodies.n)  # masses as saved
     if "hertz_moduli" in d:
         _load_hertz(sim, d)
+    if "sleep_params" in d:
+        sim._sleep.load(_arr(d, "sleep_params", np.float64, (2,)),
+                        _arr(d, "sleep_asleep", np.int64, (None,)),
+                        _arr(d, "sleep_count", np.int64, (None,)), sim._bodies.n)
     sim._step_count = _scalar(d, "step_count", 0, 2 ** 62)
     t = float(_arr(d, "time", np.float64, ()))
     if not np.isfinite(t):

@@ -38,6 +38,7 @@ from peclet.dem.materials import (MAX_MATERIAL_ID, SIMULATION_DEFAULT, MaterialT
                                   clamp_to_cone, material, per_contact)
 from peclet.dem.wallmotion import WallMotion
 from peclet.dem.hertz import HertzState
+from peclet.dem.sleep import Sleep
 from peclet.dem.guards import StepError, check_state, speed_bound  # noqa: F401 (API)
 from peclet.dem.rigid import advance_all
 from peclet.dem.scales import Scales
@@ -114,6 +115,7 @@ class Simulation:
         self._ext_force = None
         self._ext_torque = None
         self._hertz = HertzState()         # the Hertz engine's moduli and contact history
+        self._sleep = Sleep()              # sleeping of bodies at rest (off by default)
         #: Accumulated wall-clock seconds per phase (broad, narrow, solver = velocity solve +
         #: integration + projection, total), for the benchmark.
         self.timings = {"broad": 0.0, "narrow": 0.0, "solver": 0.0, "total": 0.0}
@@ -147,6 +149,25 @@ class Simulation:
         self._pos_iters, self._vel_iters = (
             check_int("position", position, 0, MAX_SOLVER_ITERATIONS),
             check_int("velocity", velocity, 0, MAX_SOLVER_ITERATIONS))
+
+    def set_sleeping(self, speed, steps):
+        """Let bodies at rest sleep (:mod:`peclet.dem.sleep`): a body whose surface speed
+        ``|v| + |omega| r`` stays below ``speed`` (> 0, length/time) for ``steps`` (an integer
+        in [1, 1000000]) consecutive steps, with every contact partner as still or asleep,
+        is held fixed and skipped by the narrow phase until a moving partner, a moving wall,
+        a load or an API call wakes it. Off by default; every body starts awake. Applies to
+        :meth:`step` (the Hertz engine ignores it)."""
+        self._sleep.configure(speed, steps)
+
+    def disable_sleeping(self):
+        """Sleeping off (the default): every body awake, the step exactly as without it."""
+        self._sleep.disable()
+
+    def get_sleeping(self):
+        """(N,) bool: the bodies asleep now (all False with sleeping off)."""
+        if not self._sleep.on:
+            return np.zeros(self._bodies.n, bool)
+        return self._sleep.sized(self._bodies.n)[0].copy()
 
     def set_contact_margin_fraction(self, fraction):
         """Speculative margin as a fraction of the smallest bounding radius, in (0, 10]
@@ -324,6 +345,7 @@ class Simulation:
 
     def _per_particle(self, setter, *args):
         n = self._bodies.n
+        self._sleep.wake_all()
         setter(*args)
         if self._bodies.n != n:
             self._warm.clear()
@@ -361,6 +383,7 @@ class Simulation:
         centres and stay where they are (a grown body may overlap: :meth:`relax`)."""
         b = self._bodies
         new = self._scales.checked(scales, b.n)
+        self._sleep.wake_all()
         self._scales.resize(b.n)
         old = self._scales.values if self._scales.values is not None else np.ones(b.n)
         k = new / old
@@ -506,14 +529,22 @@ class Simulation:
             wall_reach = self._wallmo.surface_speeds(p, radii) * dt
         return base, reach, wall_reach
 
-    def _detect(self, pos, rot, margin, reach=None, wall_reach=None):
+    def _detect(self, pos, rot, margin, reach=None, wall_reach=None, frozen=None,
+                wall_static=None):
         geo = self._geometry()
         if self._wallmo.n:
             geo.wall_pos[:] = self._wallmo.pos
             geo.wall_rot[:] = self._wallmo.rotations()
         return self._detector.detect(geo, self._shape_table()[1], pos, rot, margin,
                                      self._margin_fraction, self._domain, self.timings,
-                                     reach, wall_reach)
+                                     reach, wall_reach, frozen, wall_static)
+
+    def _loaded(self):
+        # (N,) bool: bodies with a non-zero external force or torque (None: no loads)
+        rows = [f for f in (self._ext_force, self._ext_torque) if f is not None]
+        if not rows:
+            return None
+        return np.any(np.concatenate(rows, axis=1) != 0.0, axis=1)
 
     def _slop(self):
         # a gap below the slop counts as touching in the velocity solve: no speculative
@@ -565,6 +596,12 @@ class Simulation:
             return
         t0 = time.perf_counter()
         inv_mass, inv_inertia, x, q, v, w = self._working_state()
+        frozen = self._sleep.frozen(self._bodies.n, self._loaded())
+        if frozen is not None:
+            # a sleeper is fixed for this step: no gravity, no load, not moved by a solve
+            inv_mass = np.where(frozen, 0.0, inv_mass)
+            inv_inertia = np.where(frozen[:, None], 0.0, inv_inertia)
+            q_frozen = q[frozen]
         with np.errstate(over="ignore", invalid="ignore"):   # the guard reports it
             v[inv_mass > 0] += self._gravity * dt
             if self._ext_force is not None:
@@ -573,7 +610,9 @@ class Simulation:
                 wi = solver.world_inv_inertias(q, inv_inertia)
                 w += dt * np.einsum("nij,nj->ni", wi, self._ext_torque)
         self._guard(x, q, v, w)                     # before any kernel sees a bad value
-        c = self._detect(x, quats_to_matrices(q), *self._margins(v, w, dt, x))
+        wall_moving = self._wallmo.moving_walls()
+        c = self._detect(x, quats_to_matrices(q), *self._margins(v, w, dt, x), frozen,
+                         None if frozen is None else ~wall_moving)
         t1 = time.perf_counter()
         keys = WarmStart.keys_of(c, len(self._walls))
         t1v, t2v = solver.tangent_basis(c.normal)
@@ -601,6 +640,10 @@ class Simulation:
         solver.project_positions(con, c.gap + dt * vn, inv_mass, invI, self._slop(),
                                  self._pos_iters, x, q)
         self._domain.wrap(x)
+        if frozen is not None:
+            q[frozen] = q_frozen                # a sleeper's pose keeps its bits
+            self._sleep.update(c.a, c.b, body_reach(self._radii(), v, w, 1.0), wall_moving,
+                               v, w)
         self._guard(x, q, v, w)
         t2 = time.perf_counter()
         # commit

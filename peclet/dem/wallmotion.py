@@ -109,6 +109,10 @@ class WallMotion:
         r = points - self.center[wall]
         return self.vel[wall] + np.cross(self.omega[wall], r)
 
+    def moving_walls(self):
+        """(W,) bool: the walls with a non-zero linear or angular velocity."""
+        return np.any(self.vel != 0.0, axis=1) | np.any(self.omega != 0.0, axis=1)
+
     def surface_speeds(self, pos, radii):
         """(N, W): the largest surface speed of each wall over each body's bounding sphere,
         ``|v + omega x (x - c)| + |omega| r`` (zero for a wall that does not move)."""
