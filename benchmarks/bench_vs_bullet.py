@@ -17,7 +17,8 @@ Run:  python benchmarks/bench_vs_bullet.py [--quick] [--big] [--bullet-python PA
 4. With --big: 1000 rings in a 9.7 D periodic box (the page's construction), the whole page
    protocol at 2 threads (pour, taps, relax, quench: a settled bed), then timed from that saved
    state at 1 and 2 threads, beside Bullet's 201 ms/step over the last 500 steps of the same
-   protocol for 1000 rings in a 9.7 D walled box (issue 17).
+   protocol for 1000 rings in a 9.7 D walled box (issue 17); then again with sleeping on
+   (``SLEEP``, after SLEEP_WARM steps that let the bed fall asleep).
 
 Writes benchmarks/results/vs_bullet.json and prints a table. --quick: 1/10 of the protocol
 and shorter timings (a smoke run; its ratios are not the figures to quote).
@@ -102,10 +103,20 @@ def bullet_page(python, quick):
     return json.loads(lines[-1][5:]), ""
 
 
-def timed(path, steps, threads, dt=2e-3):
+#: Sleeping for the settled bed's second timing: surface speed below 0.05 D/time for 25 steps
+#: (Bullet deactivates bodies at rest by default too); 60 steps to let the bed fall asleep.
+SLEEP = (0.05, 25)
+SLEEP_WARM = 60
+
+
+def timed(path, steps, threads, dt=2e-3, sleep=None):
     numba.set_num_threads(threads)
     sim = Simulation.load(path)
     sim.step(dt)                        # warm (JIT, caches)
+    if sleep is not None:
+        sim.set_sleeping(*sleep)
+        for _ in range(SLEEP_WARM):
+            sim.step(dt)
     for k in sim.timings:
         sim.timings[k] = 0.0
     t0 = time.perf_counter()
@@ -114,12 +125,12 @@ def timed(path, steps, threads, dt=2e-3):
     wall = time.perf_counter() - t0
     return dict(threads=threads, steps=steps, ms_per_step=1e3 * wall / steps,
                 narrow_ms=1e3 * sim.timings["narrow"] / steps, contacts=sim.num_contacts(),
-                sha256=sim.state_hash())
+                asleep=float(sim.get_sleeping().mean()), sha256=sim.state_hash())
 
 
-def bed_1_vs_2(sim, warm, steps):
+def bed_1_vs_2(sim, warm, steps, sleeping=False):
     """Run ``warm`` (a number of pour steps, or a protocol), then time ``steps`` from the same
-    saved state at 1 and 2 threads."""
+    saved state at 1 and 2 threads (and, with ``sleeping``, again with :data:`SLEEP` on)."""
     numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
     if isinstance(warm, PageProtocol):
         warm = run_protocol(sim, warm)
@@ -131,8 +142,15 @@ def bed_1_vs_2(sim, warm, steps):
         sim.save(path)
         r1 = timed(path, steps, 1)
         r2 = timed(path, steps, 2)
-    return dict(warm_steps=warm, one=r1, two=r2, speedup=r1["ms_per_step"] / r2["ms_per_step"],
-                bitwise_identical=r1["sha256"] == r2["sha256"])
+        out = dict(warm_steps=warm, one=r1, two=r2,
+                   speedup=r1["ms_per_step"] / r2["ms_per_step"],
+                   bitwise_identical=r1["sha256"] == r2["sha256"])
+        if sleeping:
+            s1 = timed(path, steps, 1, sleep=SLEEP)
+            s2 = timed(path, steps, 2, sleep=SLEEP)
+            out["sleeping"] = dict(speed=SLEEP[0], still_steps=SLEEP[1], one=s1, two=s2,
+                                   bitwise_identical=s1["sha256"] == s2["sha256"])
+    return out
 
 
 def main():
@@ -158,7 +176,7 @@ def main():
                                10 if args.quick else 60)
     if args.big:
         res["bed1000"] = bed_1_vs_2(page_pour(sp, n=1000, L=9.7, capacity=1008), proto,
-                                    5 if args.quick else 100)
+                                    5 if args.quick else 100, sleeping=True)
 
     o = res["ours_page"]
     print(f"\npeclet vs Bullet ({res['machine']}, {res['cores']} cores, numba {numba.__version__})"
@@ -183,6 +201,12 @@ def main():
         print(f"  Bullet's 1000-ring pour, last 500 steps (issue 17): {BULLET_1000_MS:.0f} ms/step"
               f" = x{BULLET_1000_MS / r['one']['ms_per_step']:.1f} ours at 1 thread, "
               f"x{BULLET_1000_MS / r['two']['ms_per_step']:.1f} at 2")
+        z = r["sleeping"]
+        print(f"  with sleeping (speed {z['speed']}, {z['still_steps']} steps): "
+              f"{z['one']['ms_per_step']:.2f} ms/step at 1 thread "
+              f"(x{BULLET_1000_MS / z['one']['ms_per_step']:.1f} Bullet), "
+              f"{z['two']['ms_per_step']:.2f} at 2; {100 * z['one']['asleep']:.0f} % asleep; "
+              f"bitwise identical: {z['bitwise_identical']}")
     out = os.path.join(HERE, "results", "vs_bullet.json")
 
     def write(path):
