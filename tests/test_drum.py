@@ -6,6 +6,10 @@
   mid-rotation and loaded goes on bit for bit as the uninterrupted one (wall pose included).
 - At Fr = 4 the bed centrifuges (a ring stuck to the wall), measured by the regime criteria.
 - Bad input to ``peclet drum``: one line naming the flag, exit code 2, nothing written.
+- Checkpoints: a run stopped at a phase boundary and again mid-rotation, or interrupted by
+  Ctrl-C in ``peclet drum``, and resumed gives the uninterrupted run's state hash, samples
+  and frames; ``--resume`` refuses what is not a drum run, parts of two runs and options
+  whose values differ from the run's (one line naming the flag, exit code 2).
 """
 import math
 import os
@@ -208,3 +212,222 @@ def test_a_fill_the_drum_cannot_hold_is_refused_before_work(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "--fill must be" in err, err
     assert not out.exists()
+
+
+# ---------------------------------------------------------------- checkpoints and --resume
+def test_run_phases_from_a_stop_adds_the_same_numbers_as_the_uninterrupted_loop():
+    from peclet.packing.series import Phase, run_phases
+
+    phases = [Phase("a", 0.3, 5), Phase("b", 0.0, 0), Phase("c", 1.7, 4), Phase("d", 0.9, 3)]
+    dt = 0.0123
+
+    def trace(start):
+        log, speed = [], [None]
+        run_phases(phases, dt, lambda: log.append(("step", speed[0])),
+                   lambda om: speed.__setitem__(0, om),
+                   lambda k, t, a, ph: log.append((k, t, a, ph.name)), start=start)
+        return log
+
+    full = trace(None)
+    for stop in range(0, 13):
+        k, t, a = full[2 * stop - 1][:3] if stop else (0, 0.0, 0.0)
+        # from any stop, the rest of the run: the same steps at the same speeds and the same
+        # clock and angle, bit for bit (floats compared with ==)
+        assert trace((k, t, a)) == full[2 * stop:], stop
+    assert full[-1][0] == 12
+
+
+#: The small drum the resume tests run: 37 grains, a warm-up of 159 steps then 318 measured
+#: (a phase boundary at 159), about 600 settle steps.
+RESUME = dict(radius=4, length=3, fill=0.25, froude=0.1, mu=0.5, wall_mu=1.0,
+              revolutions=0.1, warmup=0.05, frames=3, snapshots=2, seed=3)
+RESUME_ARGV = ["--radius", "4", "--length", "3", "--fill", "0.25", "--froude", "0.1",
+               "--mu", "0.5", "--wall-mu", "1.0", "--revolutions", "0.1", "--warmup", "0.05",
+               "--frames", "3", "--snapshots", "2", "--seed", "3"]
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The uninterrupted run (no checkpoints) and its output directory."""
+    out = tmp_path_factory.mktemp("drum_ref") / "run"
+    res = run_drum(DrumSpec(**RESUME), out=str(out), progress=False, figures=False)
+    return res, out
+
+
+def _same_results(a, b):
+    import json
+
+    strip = lambda r: json.dumps({k: v for k, v in r.items()  # noqa: E731
+                                  if k not in ("seconds", "ms_per_step", "files")},
+                                 sort_keys=True)
+    assert strip(a) == strip(b)
+
+
+def _same_frames(a, b):
+    import meshio
+
+    fa = sorted((a / "frames").glob("frame_*.vtu"))
+    fb = sorted((b / "frames").glob("frame_*.vtu"))
+    assert [f.name for f in fa] == [f.name for f in fb] and len(fa) == 3
+    for x, y in zip(fa, fb):
+        mx, my = meshio.read(x), meshio.read(y)
+        assert np.array_equal(mx.points, my.points)
+        assert np.array_equal(mx.point_data["velocity"], my.point_data["velocity"])
+    assert (a / "drum.pvd").read_text() == (b / "drum.pvd").read_text()
+
+
+def test_a_drum_stopped_at_a_phase_boundary_and_mid_rotation_resumes_bit_for_bit(reference,
+                                                                                  tmp_path):
+    import json
+
+    from peclet.packing.drum import resume_drum
+
+    ref, ref_out = reference
+    assert ref["steps"] == 477 and ref["grains"] == 37
+    out = tmp_path / "run"
+    # stop at the end of the warm-up (a phase boundary), then mid-rotation, then finish
+    a = run_drum(DrumSpec(**RESUME), out=str(out), progress=False, figures=False,
+                 checkpoint_every=100, max_steps=159)
+    assert a == dict(complete=False, steps_done=159, checkpoint=str(out / "checkpoint"))
+    assert not (out / "results.json").exists()
+    b = resume_drum(str(out), progress=False, figures=False, max_steps=237)
+    assert b["complete"] is False and b["steps_done"] == 237
+    ptr = json.loads((out / "checkpoint" / "checkpoint.json").read_text())
+    state = json.loads((out / "checkpoint" / ptr["latest"] / "state.json").read_text())
+    assert ptr["step"] == state["k"] == 237
+    # mid-rotation: the drum was turning at the stop, by omega dt a step since the warm-up
+    om, dt = DrumSpec(**RESUME).checked().omega, 0.004
+    assert state["angle"] == pytest.approx(237 * om * dt, rel=1e-12) and state["angle"] > 0.1
+    c = resume_drum(str(out / "checkpoint"), progress=False, figures=False)
+    assert c["state_hash"] == ref["state_hash"]
+    _same_results(c, ref)
+    _same_frames(out, ref_out)
+    assert not (out / "checkpoint").exists()          # removed at the end
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["state_hash"] == ref["state_hash"]
+
+
+def test_peclet_drum_interrupted_by_ctrl_c_resumes_with_the_uninterrupted_bits(
+        reference, tmp_path, capsys, monkeypatch):
+    import json
+
+    from peclet.packing import drum as dr
+
+    ref, ref_out = reference
+    out = tmp_path / "run"
+    real, calls = dr.Drum.step, [0]
+
+    def step(self, k=1):
+        calls[0] += 1
+        if calls[0] == 250:                       # Ctrl-C in the 250th turning step
+            raise KeyboardInterrupt
+        return real(self, k)
+
+    monkeypatch.setattr(dr.Drum, "step", step)
+    rc = main(["drum", *RESUME_ARGV, "--out", str(out), "--quiet", "--no-figures",
+               "--checkpoint-every", "100"])
+    err = capsys.readouterr().err
+    assert rc == 130 and "resumes it" in err and "--resume" in err, err
+    ptr = json.loads((out / "checkpoint" / "checkpoint.json").read_text())
+    assert ptr["step"] == 200                    # the last multiple of 100 before the stop
+    assert not (out / "results.json").exists()
+    monkeypatch.setattr(dr.Drum, "step", real)
+    # a new run into it is refused, pointing at --resume
+    assert main(["drum", *RESUME_ARGV, "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--out must be a new or empty directory" in err and "--resume" in err, err
+    # the run's own options may be repeated with --resume (same values)
+    rc = main(["drum", "--resume", str(out), "--quiet", "--no-figures", "--froude", "0.1",
+               "--seed", "3"])
+    assert rc == 0, capsys.readouterr().err
+    res = json.loads((out / "results.json").read_text())
+    assert res["state_hash"] == ref["state_hash"]
+    _same_frames(out, ref_out)
+    assert not (out / "checkpoint").exists()
+
+
+@pytest.fixture(scope="module")
+def settled_checkpoint(tmp_path_factory):
+    """A run stopped right after its settle (the checkpoint of step 0)."""
+    out = tmp_path_factory.mktemp("drum_ckpt") / "run"
+    r = run_drum(DrumSpec(**RESUME), out=str(out), progress=False, figures=False,
+                 checkpoint_every=100, max_steps=0)
+    assert r["steps_done"] == 0
+    return out
+
+
+RESUME_CASES = [
+    (["--froude", "0.2"], "--froude", "the resumed run's 0.1"),
+    (["--mu", "0.7"], "--mu", "the resumed run's 0.5"),
+    (["--seed", "4"], "--seed", "the resumed run's 3"),
+    (["--rpm", "30"], "--rpm", "(Froude 0.1 at 3 mm)"),
+    (["--ends", "periodic"], "--ends", "the resumed run's 'caps'"),
+    (["--mu", "-1"], "--mu", "[0, 10]"),                 # checked before it is compared
+    (["--checkpoint-every", "-5"], "--checkpoint-every", "[0, 1e+09]"),
+]
+
+
+@pytest.mark.parametrize("argv,flag,phrase", RESUME_CASES,
+                         ids=[" ".join(c[0]) for c in RESUME_CASES])
+def test_resuming_with_other_parameters_is_one_line_naming_the_flag(settled_checkpoint,
+                                                                      capsys, argv, flag,
+                                                                      phrase):
+    before = sorted(os.listdir(settled_checkpoint / "checkpoint"))
+    rc = main(["drum", "--resume", str(settled_checkpoint), "--quiet"] + argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert len(err) == 1, err
+    assert err[0].startswith(f"peclet drum: error: {flag} must"), err
+    assert phrase in err[0], err
+    assert sorted(os.listdir(settled_checkpoint / "checkpoint")) == before
+    assert not (settled_checkpoint / "results.json").exists()
+
+
+def _not_a_drum_run(tmp_path, kind):
+    import json
+
+    d = tmp_path / kind.replace(" ", "_")
+    d.mkdir()
+    if kind == "empty":
+        return d, "no checkpoint/checkpoint.json in it"
+    if kind == "pack checkpoint":
+        (d / "checkpoint").mkdir()
+        (d / "checkpoint" / "checkpoint.json").write_text(json.dumps(
+            dict(kind="peclet pack checkpoint", run="x", latest=None, step=0)))
+        return d, "not a drum checkpoint's (kind 'peclet pack checkpoint')"
+    if kind == "finished run":
+        (d / "results.json").write_text("{}")
+        return d, "a finished run"
+    if kind == "missing":
+        return d / "nope", "it does not exist"
+    if kind == "file":
+        (d / "f.json").write_text("{}")
+        return d / "f.json", "it is a file"
+    raise AssertionError(kind)
+
+
+@pytest.mark.parametrize("kind", ["empty", "pack checkpoint", "finished run", "missing",
+                                  "file"])
+def test_resuming_what_is_not_a_drum_run_is_one_line(tmp_path, capsys, kind):
+    path, phrase = _not_a_drum_run(tmp_path, kind)
+    rc = main(["drum", "--resume", str(path), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert len(err) == 1, err
+    assert err[0].startswith("peclet drum: error: --resume must be a drum run's output "
+                             "directory"), err
+    assert phrase in err[0], err
+
+
+def test_a_checkpoint_assembled_from_two_runs_is_refused(settled_checkpoint, tmp_path, capsys):
+    import json
+    import shutil
+
+    d = tmp_path / "mixed"
+    shutil.copytree(settled_checkpoint, d)
+    p = d / "checkpoint" / "checkpoint.json"
+    ptr = json.loads(p.read_text())
+    p.write_text(json.dumps(dict(ptr, run="0" * 32)))      # another run's pointer
+    rc = main(["drum", "--resume", str(d), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "parts of two runs" in err, err

@@ -57,7 +57,6 @@ distance is below contact, with the two crossings interpolated linearly in time.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -69,6 +68,12 @@ from scipy.integrate import quad
 from peclet.core import geom
 from peclet.core.files import write_json
 from peclet.dem import Simulation
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:           # run as a script: the repository, for the package below
+    sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_JSON = os.path.join(HERE, "results", "chung_ooi.json")
@@ -435,24 +440,22 @@ def run(steps, only=None, progress=True):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--json", default=DEFAULT_JSON, metavar="FILE",
+    ap = vargs.ScriptParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", type=vargs.output_file, default=DEFAULT_JSON, metavar="FILE",
                     help="where to write the results (default validation/results/"
                          "chung_ooi.json)")
-    ap.add_argument("--threads", type=int, default=1,
-                    help="Numba threads (default 1; the results do not depend on it)")
-    ap.add_argument("--steps", type=int, default=2000,
+    ap.add_argument("--threads", type=vargs.threads, default=1,
+                    help="Numba threads, in [1, NUMBA_NUM_THREADS] (default 1; the results do "
+                    "not depend on it)")
+    ap.add_argument("--steps", type=vargs.integer(50, 10 ** 7), default=2000,
                     help="substeps per analytic contact time in tests 1-3 (a quarter of it "
                          "in 4-8; default 2000)")
     ap.add_argument("--tests", default=None, help="comma-separated test numbers (default all)")
     a = ap.parse_args(argv)
-    if a.threads < 1:
-        ap.error("--threads must be >= 1")
-    if a.steps < 50:
-        ap.error("--steps must be >= 50")
     only = None if a.tests is None else set(a.tests.split(","))
     if only is not None and not only <= {t[0] for t in TESTS}:
-        ap.error("--tests takes numbers 1-8")
+        ap.error(f"argument --tests: must be comma-separated test numbers in 1-{len(TESTS)}, "
+                 f"got {a.tests!r}")
     import numba
     numba.set_num_threads(min(a.threads, numba.config.NUMBA_NUM_THREADS))
     t0 = time.perf_counter()
@@ -471,4 +474,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(vargs.run(main))

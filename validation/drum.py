@@ -41,7 +41,6 @@ them as indicative, not as a calibrated reference.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -51,6 +50,8 @@ from concurrent.futures import ProcessPoolExecutor
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 FROUDES = (1e-4, 1e-3, 1e-2, 0.3, 3.0)
 MUS = (0.2, 0.5, 0.8)
@@ -137,15 +138,17 @@ def checks(rows):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = vargs.ScriptParser(description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true", help="shorter runs (a smoke test)")
-    p.add_argument("--workers", type=int, default=2, help="processes (default 2)")
-    p.add_argument("--json", default=None, help="write the rows as JSON here")
+    p.add_argument("--workers", type=vargs.integer(1, 64), default=2,
+                   help="processes, in [1, 64] (default 2)")
+    p.add_argument("--json", type=vargs.output_file, default=None,
+                   help="write the rows as JSON here (a file in an existing directory)")
     a = p.parse_args(argv)
     sched = QUICK if a.quick else SCHEDULE
     jobs = [(fr, mu, sched[fr]) for mu in MUS for fr in FROUDES]
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=max(1, a.workers)) as ex:
+    with ProcessPoolExecutor(max_workers=a.workers) as ex:
         rows = list(ex.map(one, jobs))
     print("Rotating drum: spheres (0.45/0.5/0.55 D), R = 8 D, periodic slice L = 3 D, 40 ribs, "
           "fill 0.35, e = 0.3, wall mu = 1.0")
@@ -173,4 +176,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(vargs.run(main))

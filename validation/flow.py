@@ -19,14 +19,20 @@ Prints tables; ``--json`` writes every number; ``--quick`` runs reduced sizes (t
 """
 from __future__ import annotations
 
-import argparse
 import math
+import os
 import sys
 import time
 
 import numpy as np
 
 from peclet.flow import Grid, build_geometry, permeability, richardson, solve
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:           # run as a script: the repository, for the package below
+    sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 #: Zick & Homsy (1982), simple cubic arrays: solid fraction -> K.
 ZICK_HOMSY = {0.027: 2.008, 0.064: 2.810, 0.125: 4.292, 0.216: 7.442, 0.343: 15.4,
@@ -115,10 +121,12 @@ def _table(rows, cols):
 
 def main(argv=None):
     import warnings
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = vargs.ScriptParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="reduced sizes")
-    ap.add_argument("--json", default=None, help="write the results here")
-    ap.add_argument("--page-pack", default=None, help="the page's pall_ring_pack.npz")
+    ap.add_argument("--json", type=vargs.output_file, default=None,
+                    help="write the results here (a file in an existing directory)")
+    ap.add_argument("--page-pack", type=vargs.input_file, default=None,
+                    help="the page's pall_ring_pack.npz (an existing file)")
     a = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     out = {}
@@ -171,5 +179,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
-    sys.exit(main())
+    sys.exit(vargs.run(main))

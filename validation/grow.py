@@ -19,10 +19,16 @@ Run:  python validation/grow.py [--counts 100,300,1000] [--rings 64] [--json out
 """
 from __future__ import annotations
 
-import argparse
+import os
 import sys
 
 from peclet.packing.grow import GrowSpec, grow
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:           # run as a script: the repository, for the package below
+    sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 RCP = (0.63, 0.645)
 Z_MIN = 5.8
@@ -33,14 +39,19 @@ FINITE_SIZE_N = 300
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--counts", default="100,300,1000")
-    ap.add_argument("--rings", type=int, default=64, help="Pall rings grown (0: none)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--json", default=None)
+    ap = vargs.ScriptParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--counts", type=vargs.integer_list(2, 100_000), default="100,300,1000",
+                    help="sphere counts, comma-separated, each in [2, 100000] "
+                    "(default 100,300,1000)")
+    ap.add_argument("--rings", type=vargs.integer(0, 100_000), default=64,
+                    help="Pall rings grown, in [0, 100000] (0: none; default 64)")
+    ap.add_argument("--seed", type=vargs.integer(0, 2 ** 63 - 1), default=1,
+                    help="generator seed >= 0 (default 1)")
+    ap.add_argument("--json", type=vargs.output_file, default=None,
+                    help="write the results here (a file in an existing directory)")
     a = ap.parse_args(argv)
     rows, out = [], []
-    for n in [int(x) for x in a.counts.split(",") if x]:
+    for n in a.counts:
         r = grow(GrowSpec(count=n, seed=a.seed), progress=False)
         ok = RCP[0] <= r["phi"] <= RCP[1] and r["z_mean"] >= Z_MIN
         verdict = "ok" if ok else ("OUT OF BAND" if n >= FINITE_SIZE_N else
@@ -70,4 +81,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(vargs.run(main))

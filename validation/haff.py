@@ -26,14 +26,20 @@ Run:  python validation/haff.py [--count 2000] [--phi 0.1] [--t-end 2] [--json o
 """
 from __future__ import annotations
 
-import argparse
 import math
+import os
 import sys
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
 from peclet.dem import Simulation
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:           # run as a script: the repository, for the package below
+    sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 SIGMA = 1.0
 MASS = math.pi / 6.0
@@ -109,13 +115,20 @@ def run(count=2000, phi=0.1, e=0.9, t_end=2.0, seed=1, sample=50, dt=2e-3, progr
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--count", type=int, default=2000)
-    ap.add_argument("--phi", type=float, default=0.1)
-    ap.add_argument("--e", type=float, default=0.9)
-    ap.add_argument("--t-end", type=float, default=2.0)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--json", default=None)
+    ap = vargs.ScriptParser(description=__doc__.splitlines()[0])
+    # count >= 100 and phi <= 0.3: the start lattice has no overlaps (from 72 spheres on)
+    ap.add_argument("--count", type=vargs.integer(100, 1_000_000), default=2000,
+                    help="spheres, in [100, 1000000] (default 2000)")
+    ap.add_argument("--phi", type=vargs.real(0.0, 0.3, lo_open=True), default=0.1,
+                    help="solid fraction in (0, 0.3] (default 0.1)")
+    ap.add_argument("--e", type=vargs.real(0.0, 1.0, hi_open=True), default=0.9,
+                    help="restitution in [0, 1) (1: no cooling; default 0.9)")
+    ap.add_argument("--t-end", type=vargs.real(0.0, 100.0, lo_open=True), default=2.0,
+                    help="run time in predicted t0, in (0, 100] (default 2)")
+    ap.add_argument("--seed", type=vargs.integer(0, 2 ** 63 - 1), default=1,
+                    help="generator seed >= 0 (default 1)")
+    ap.add_argument("--json", type=vargs.output_file, default=None,
+                    help="write the results here (a file in an existing directory)")
     a = ap.parse_args(argv)
     r = run(a.count, a.phi, a.e, a.t_end, a.seed)
     print(f"Haff's law, {r['count']} spheres, phi {r['phi']}, e {r['e']}, T0 {r['T0']:.4f}, "
@@ -137,4 +150,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(vargs.run(main))

@@ -44,7 +44,6 @@ these cases are too small to gain from threads on a shared machine).
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -57,6 +56,12 @@ from peclet.core import geom
 from peclet.core.files import write_json
 from peclet.core.geom.transforms import matrix_to_quat
 from peclet.dem import Simulation, scene_particle
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:           # run as a script: the repository, for the package below
+    sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 G = 9.81
 #: The engine's default solver sweeps (position, velocity), used by every case.
@@ -532,14 +537,13 @@ def run(threads=1, progress=True):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--json", default=DEFAULT_JSON, metavar="FILE",
+    ap = vargs.ScriptParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", type=vargs.output_file, default=DEFAULT_JSON, metavar="FILE",
                     help="where to write the scorecard (default validation/results/sanity.json)")
-    ap.add_argument("--threads", type=int, default=1,
-                    help="Numba threads (default 1; the results do not depend on it)")
+    ap.add_argument("--threads", type=vargs.threads, default=1,
+                    help="Numba threads, in [1, NUMBA_NUM_THREADS] (default 1; the results do "
+                    "not depend on it)")
     a = ap.parse_args(argv)
-    if a.threads < 1:
-        ap.error("--threads must be >= 1")
     t0 = time.perf_counter()
     rows, seconds = run(a.threads)
     text = table(rows)
@@ -560,4 +564,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(vargs.run(main))

@@ -58,7 +58,6 @@ Orifices: 5, 6 and 7 d by default (Beverloo's law is usually said to hold from D
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -70,6 +69,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 from peclet.core.validation import PecletArgumentError, check_float, check_int  # noqa: E402
 
@@ -420,30 +421,25 @@ def table(rows, cmp):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = vargs.ScriptParser(description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true",
                    help=f"orifices {QUICK_ORIFICES}, window {QUICK_WINDOW} d (a smoke test)")
-    p.add_argument("--orifices", default=None,
-                   help="orifice diameters in d, comma-separated (default 5,6,7)")
-    p.add_argument("--window", type=float, default=None,
-                   help=f"measured window as fill height in d (default {DEFAULT_WINDOW})")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--workers", type=int, default=2, help="processes (default 2)")
-    p.add_argument("--json", default=None, help="write every number as JSON here")
+    p.add_argument("--orifices", type=vargs.real_list(1.5, 100.0, lo_open=True), default=None,
+                   help="orifice diameters in d, comma-separated, each in (1.5, 100] "
+                   "(default 5,6,7)")
+    p.add_argument("--window", type=vargs.real(0.5, 100.0), default=None,
+                   help=f"measured window as fill height in d, in [0.5, 100] "
+                   f"(default {DEFAULT_WINDOW})")
+    p.add_argument("--seed", type=vargs.integer(0, 2 ** 63 - 1), default=1,
+                   help="generator seed >= 0 (default 1)")
+    p.add_argument("--workers", type=vargs.integer(1, 64), default=2,
+                   help="processes, in [1, 64] (default 2)")
+    p.add_argument("--json", type=vargs.output_file, default=None,
+                   help="write every number as JSON here (a file in an existing directory)")
     a = p.parse_args(argv)
-    if a.orifices:
-        try:
-            orifices = tuple(float(x) for x in a.orifices.split(","))
-        except ValueError:
-            raise PecletArgumentError("--orifices", "comma-separated numbers", a.orifices) \
-                from None
-    else:
-        orifices = QUICK_ORIFICES if a.quick else DEFAULT_ORIFICES
-    for D0 in orifices:
-        check_float("--orifices", D0, 1.5, 100.0, lo_open=True)
+    orifices = a.orifices or (QUICK_ORIFICES if a.quick else DEFAULT_ORIFICES)
     window = a.window if a.window is not None else (QUICK_WINDOW if a.quick else DEFAULT_WINDOW)
-    window = check_float("--window", window, 0.5, 100.0)
-    workers = check_int("--workers", a.workers, 1, 64)
+    workers = a.workers
     t0 = time.perf_counter()
     rows = run(orifices, window, a.seed, workers)
     cmp = compare(rows)
@@ -477,4 +473,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(vargs.run(main))

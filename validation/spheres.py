@@ -24,7 +24,6 @@ runs reduced beds (about 4 d tall, N = 5 only and two frictions) for a smoke tes
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -36,6 +35,12 @@ import numpy as np
 from peclet.core.files import atomic_write
 from peclet.packing import Material, RainProtocol, pack
 from peclet.packing import report as bed_report
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:           # run as a script: the repository, for the package below
+    sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 #: The deposition used for every sphere bed here (see the module docstring).
 RAIN = RainProtocol(batch=1, insert_every=4, drop=30.0, speed=2.0)
@@ -122,10 +127,13 @@ def table(cols, boxes):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = vargs.ScriptParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="reduced beds (smoke test)")
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results",
-                                                  "spheres.json"))
+    ap.add_argument("--out", type=vargs.output_file,
+                    default=os.path.join(os.path.dirname(__file__), "results",
+                                         "spheres.json"),
+                    help="JSON (a file in an existing directory; default "
+                    "validation/results/spheres.json)")
     ap.add_argument("--progress", action="store_true")
     ap.add_argument("--only", choices=("columns", "boxes"), default=None)
     a = ap.parse_args(argv)
@@ -146,4 +154,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(vargs.run(main))

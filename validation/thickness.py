@@ -47,7 +47,6 @@ Writes ``validation/results/thickness.json`` (atomically) and prints the table a
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import os
@@ -57,6 +56,12 @@ import time
 import numpy as np
 
 from peclet.core.files import write_json
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:           # run as a script: the repository, for the package below
+    sys.path.insert(0, ROOT)
+
+import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
 
 #: Confidence of every interval.
 CONFIDENCE = 0.95
@@ -293,14 +298,14 @@ def protocol_text(study):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = vargs.ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a smoke run (minutes)")
-    ap.add_argument("--workers", type=int, default=2, help="packs at once (default 2)")
-    ap.add_argument("--out", default=None, help="JSON (default validation/results/"
+    ap.add_argument("--workers", type=vargs.integer(1, 64), default=2,
+                    help="packs at once, in [1, 64] (default 2)")
+    ap.add_argument("--out", type=vargs.output_file, default=None,
+                    help="JSON (a file in an existing directory; default validation/results/"
                     "thickness.json, thickness_quick.json with --quick)")
     a = ap.parse_args(argv)
-    if a.workers < 1:
-        ap.error("--workers must be >= 1")
     study = QUICK if a.quick else FULL
     here = os.path.dirname(os.path.abspath(__file__))
     out = a.out or os.path.join(here, "results",
@@ -322,5 +327,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    sys.exit(main())
+    sys.exit(vargs.run(main))

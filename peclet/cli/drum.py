@@ -3,19 +3,25 @@
     peclet drum --element sphere --radius 10 --length 4 --fill 0.35 --froude 1e-2 \\
                 --mu 0.5 --revolutions 2 --out drum/
     peclet drum --radius 8 --length 3 --ends periodic --rpm 20 --grain-mm 3 --out drum/
+    peclet drum --resume drum/          # finish an interrupted run, bit for bit
 
 Writes into --out ``results.json`` (the dynamic angle: mean and spread over time windows
 after the warm-up, the regime with the criteria's values, Mellmann's regimes at this Froude
 number), ``snapshots.png``, ``angle.png`` and the ParaView series ``drum.pvd`` +
-``frames/``; prints a results table. Every argument is checked before any work: a bad one is
-one line naming its flag, exit code 2, nothing written. See :mod:`peclet.packing.drum`.
+``frames/``; prints a results table. While the run lasts, ``checkpoint/`` in --out holds its
+latest checkpoint (after the settle, every --checkpoint-every steps and at each phase's end;
+removed at the end unless --keep-checkpoint): ``--resume DIR`` finishes an interrupted run
+bit for bit, with the run's own parameters (an option given with --resume must have the
+run's value). Every argument is checked before any work: a bad one is one line naming its
+flag, exit code 2, nothing written. See :mod:`peclet.packing.drum`.
 """
 from __future__ import annotations
 
 import math
+import os
 
 from peclet.core.files import check_output_dir
-from peclet.core.validation import PecletArgumentError
+from peclet.core.validation import PecletArgumentError, check_int
 
 from .options import number, threads_option
 
@@ -43,85 +49,142 @@ def add_parser(sub):
                        "(drum.pvd, frames/) into --out.")
     p.set_defaults(func=run)
     a = p.add_argument
-    a("--element", default="sphere", help="sphere (default; polydisperse, see "
+    a("--element", default=None, help="sphere (default; polydisperse, see "
       "--polydispersity) or a library element (pall_ring, raschig_ring, ...)")
-    a("--radius", default="10", help="drum radius in element diameters D, in [3, 200] "
+    a("--radius", default=None, help="drum radius in element diameters D, in [3, 200] "
       "(default 10)")
-    a("--length", default="4", help="drum length in D, in [1, 200] (default 4)")
-    a("--ends", default="caps", help="caps (closed drum, end caps turn with it; default) or "
+    a("--length", default=None, help="drum length in D, in [1, 200] (default 4)")
+    a("--ends", default=None, help="caps (closed drum, end caps turn with it; default) or "
       "periodic (a slice of a long drum, no end walls)")
-    a("--fill", default="0.35", help="bed volume / drum volume, in (0, 0.8] (default 0.35)")
+    a("--fill", default=None, help="bed volume / drum volume, in (0, 0.8] (default 0.35)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--froude", default=None, help="Fr = omega^2 R / g in (0, 100]")
     g.add_argument("--rpm", default=None, help="revolutions per minute (with --grain-mm)")
-    a("--grain-mm", default="3", help="grain diameter in mm, for --rpm and the rpm reported "
+    a("--grain-mm", default=None, help="grain diameter in mm, for --rpm and the rpm reported "
       "(default 3)")
-    a("--mu", default="0.5", help="grain-grain friction (default 0.5)")
+    a("--mu", default=None, help="grain-grain friction (default 0.5)")
     a("--wall-mu", default=None, help="wall friction (default: --mu)")
-    a("--restitution", default="0.3", help="grain-grain normal restitution (default 0.3)")
+    a("--restitution", default=None, help="grain-grain normal restitution (default 0.3)")
     a("--wall-restitution", default=None, help="wall restitution (default: --restitution)")
     a("--ribs", default=None, help="wall ribs (a rough wall; 0: smooth). Default: one per "
       "1.25 D of circumference")
-    a("--polydispersity", default="0.1", help="spheres: radii 0.5 (1 -+ p) and 0.5 D in "
+    a("--polydispersity", default=None, help="spheres: radii 0.5 (1 -+ p) and 0.5 D in "
       "equal shares, p in [0, 0.5) (default 0.1)")
-    a("--revolutions", default="2", help="measured revolutions after the warm-up (default 2)")
-    a("--warmup", default="1", help="warm-up revolutions before measuring (default 1)")
-    a("--spinup", default="0", help="degrees turned at Fr = 0.01 before the warm-up "
+    a("--revolutions", default=None, help="measured revolutions after the warm-up (default 2)")
+    a("--warmup", default=None, help="warm-up revolutions before measuring (default 1)")
+    a("--spinup", default=None, help="degrees turned at Fr = 0.01 before the warm-up "
       "(default 0; for slow drums)")
     a("--dt", default=None, help="time step (default 4e-3 spheres, 2e-3 elements, at most "
       "0.05 D / (omega R))")
-    a("--seed", default="1", help="generator seed >= 0 (default 1)")
-    a("--frames", default="24", help="ParaView frames (0: none; default 24)")
-    a("--snapshots", default="4", help="cross-sections in snapshots.png, in [1, 12] "
+    a("--seed", default=None, help="generator seed >= 0 (default 1)")
+    a("--frames", default=None, help="ParaView frames (0: none; default 24)")
+    a("--snapshots", default=None, help="cross-sections in snapshots.png, in [1, 12] "
       "(default 4)")
     a("--threads", default=None, help="numba threads (default: numba's)")
-    a("--out", default="drum_results", help="output directory (default ./drum_results)")
+    a("--out", default=None, help="output directory (default ./drum_results; with --resume: "
+      "the resumed run's)")
     a("--overwrite", action="store_true", help="replace an earlier run's outputs in --out")
+    a("--checkpoint-every", default=None, help="turning steps between checkpoints in "
+      "OUT/checkpoint, in [0, 1e9] (0: none; default 2000, with --resume the run's)")
+    a("--keep-checkpoint", action="store_true", help="keep OUT/checkpoint after the run ends")
+    a("--resume", default=None, metavar="DIR", help="finish the interrupted run in DIR (its "
+      "--out or DIR/checkpoint), bit for bit; its parameters are the run's (an option given "
+      "must have the run's value)")
     a("--no-figures", action="store_true", help="skip snapshots.png and angle.png")
     a("--quiet", action="store_true", help="no progress bar")
     return p
+
+
+def given_fields(args):
+    """The DrumSpec fields set by the options given in ``args`` (converted, not range-checked
+    yet: ``DrumSpec.checked`` does that, naming the flags)."""
+    kw = {}
+    dest = {"e": "restitution", "wall_e": "wall_restitution"}
+    for field in _FLOATS + _INTS:
+        text = getattr(args, dest.get(field, field))
+        if text is not None:
+            kw[field] = number(FLAGS[field], text, int if field in _INTS else float)
+    for field in ("element", "ends"):
+        if getattr(args, field) is not None:
+            kw[field] = getattr(args, field)
+    return kw
 
 
 def spec_from_args(args):
     """The checked DrumSpec of the parsed ``args`` (errors name the flags)."""
     from peclet.packing.drum import DrumSpec
 
-    kw = {}
-    dest = {"e": "restitution", "wall_e": "wall_restitution"}
-    for field in _FLOATS + _INTS:
-        text = getattr(args, dest.get(field, field))
-        if text is None:
-            kw[field] = None
-            continue
-        kw[field] = number(FLAGS[field], text, int if field in _INTS else float)
-    if kw["froude"] is None and kw["rpm"] is None:
+    kw = given_fields(args)
+    if kw.get("froude") is None and kw.get("rpm") is None:
         raise PecletArgumentError("--froude", "given, or --rpm (exactly one)", None)
-    for k in ("radius", "length", "fill", "grain_mm", "mu", "e", "polydispersity",
-              "revolutions", "warmup", "spinup", "seed", "frames", "snapshots"):
-        if kw[k] is None:
-            kw.pop(k)
-    spec = DrumSpec(element=args.element, ends=args.ends, **kw)
-    return spec.checked(FLAGS)
+    return DrumSpec(**kw).checked(FLAGS)
+
+
+def _every(args, default=2000):
+    """--checkpoint-every (``default`` when not given; 0: no checkpoints)."""
+    if args.checkpoint_every is None:
+        return default
+    return check_int("--checkpoint-every", number("--checkpoint-every", args.checkpoint_every,
+                                                  int), 0, 10 ** 9)
+
+
+def _element_error(exc, text):
+    """A library lookup's error about ``element`` as one naming --element."""
+    if exc.argument == "element" and str(exc).startswith("element"):
+        err = PecletArgumentError("--element", "", text)
+        err.args = ("--element" + str(exc)[len("element"):],)
+        return err
+    return exc
 
 
 def run(args):
     from peclet.packing.drum import OUTPUT_DIRS, OUTPUTS, Drum, run_drum
 
+    if args.resume is not None:
+        return _resume(args)
     spec = spec_from_args(args)
     threads = threads_option(args.threads)
-    out, previous = check_output_dir(args.out, OUTPUTS, args.overwrite, "--out",
-                                     dirs=OUTPUT_DIRS)
+    every = _every(args)
+    out = args.out or "drum_results"
+    if not args.overwrite and os.path.isfile(os.path.join(out, "checkpoint",
+                                                          "checkpoint.json")):
+        raise PecletArgumentError("--out", "a new or empty directory", out, "it holds an "
+                                  f"interrupted drum run: finish it with --resume {out}, or "
+                                  "pass --overwrite to replace it")
+    out, previous = check_output_dir(out, OUTPUTS, args.overwrite, "--out", dirs=OUTPUT_DIRS)
     try:
         drum = Drum(spec)
         drum.check_room("--fill", "--length")
     except PecletArgumentError as exc:
-        if exc.argument == "element" and str(exc).startswith("element"):
-            err = PecletArgumentError("--element", "", args.element)
-            err.args = ("--element" + str(exc)[len("element"):],)
-            raise err from None
-        raise
+        raise _element_error(exc, args.element) from None
     res = run_drum(spec, out, progress=not args.quiet, figures=not args.no_figures,
-                   threads=threads, previous=previous)
+                   threads=threads, previous=previous, checkpoint_every=every,
+                   keep_checkpoint=args.keep_checkpoint)
+    print(table(res))
+    return 0
+
+
+def _resume(args):
+    """``--resume DIR``: check everything (the checkpoint, the options given against the
+    run's), then finish the run."""
+    from peclet.packing import drum as dr
+
+    threads = threads_option(args.threads)
+    every = _every(args, None)                 # None: as the run had it
+    cdir = dr.checkpoint_dir(args.resume, "--resume")
+    saved, _, _, _ = dr.read_checkpoint(cdir, "--resume")
+    given = given_fields(args)
+    try:
+        dr.same_spec(saved, given, FLAGS)
+    except PecletArgumentError as exc:
+        raise _element_error(exc, args.element) from None
+    out, previous = check_output_dir(args.out or os.path.dirname(cdir), dr.OUTPUTS,
+                                     args.overwrite, "--out", dirs=dr.OUTPUT_DIRS,
+                                     keep=(cdir,))
+    res = dr.resume_drum(cdir, out, progress=not args.quiet, figures=not args.no_figures,
+                         threads=threads, previous=previous, checkpoint_every=every,
+                         keep_checkpoint=args.keep_checkpoint, names=dict(FLAGS,
+                                                                           resume="--resume"))
     print(table(res))
     return 0
 

@@ -59,6 +59,18 @@ series ``drum.pvd`` indexing ``frames/frame_NNNN.vtu`` (grain centres as vertice
 velocity, speed, speed relative to the drum, shape id; plus the drum's rim circles as lines).
 Every file is written atomically (:mod:`peclet.core.files`).
 
+Checkpoints and resume. With ``checkpoint_every`` K, :func:`run_drum` keeps
+``checkpoint/`` in the output directory: after the settle, every K turning steps and at each
+phase's end it writes ``step-<k>/`` (``sim.npz``, the bitwise :meth:`Simulation.save`;
+``state.json``, the loop's step, clock, angle and the samples so far; ``arrays.npz``, the
+grain radii and the frames and snapshots kept so far) into a temporary directory renamed into
+place, then replaces ``checkpoint.json`` (kind, run id, spec, latest step) and removes the
+older step: an interrupt at any moment leaves a complete checkpoint. :func:`resume_drum`
+loads it and goes on from step k (:func:`~peclet.packing.series.run_phases` with ``start``):
+the results, the state hash included, are those of the uninterrupted run. It refuses a
+directory that is not a drum run's, parts of two runs, and stated parameters that differ
+from the run's.
+
 The phase loop (turn the wall at each phase's speed, count steps, keep the angle) and the
 ParaView writer are shared with the stirred column (:mod:`peclet.packing.series`); the pour
 protocols' kick/quench/settle base (:mod:`peclet.packing.protocols`) does not fit a run whose
@@ -66,21 +78,28 @@ only driver is a turning wall, so the drum does not subclass it.
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
+import shutil
+import sys
 import time
+import uuid
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from peclet.core import geom
-from peclet.core.files import atomic_write, write_json
+from peclet.core.files import atomic_directory, atomic_write, clear_outputs, write_json
 from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
 
 from .series import Phase, grains_mesh, run_phases, write_series
 
 __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "G", "froude_of_rpm",
-           "rpm_of_froude", "run_drum", "OUTPUTS", "add_drum_wall"]
+           "rpm_of_froude", "run_drum", "resume_drum", "checkpoint_dir", "read_checkpoint",
+           "same_spec", "OUTPUTS",
+           "add_drum_wall"]
 
 G = 9.81
 
@@ -108,8 +127,12 @@ RIB_SPACING = 1.25
 SPINUP_FROUDE = 1e-2
 
 #: What a run writes into its output directory.
-OUTPUTS = ("results.json", "snapshots.png", "angle.png", "drum.pvd", "frames")
-OUTPUT_DIRS = ("frames",)
+OUTPUTS = ("results.json", "snapshots.png", "angle.png", "drum.pvd", "frames", "checkpoint")
+OUTPUT_DIRS = ("frames", "checkpoint")
+#: The checkpoint directory inside a run's output directory, its pointer file and kind.
+CHECKPOINT = "checkpoint"
+POINTER = "checkpoint.json"
+_KIND = "peclet drum checkpoint"
 
 ENDS = ("caps", "periodic")
 
@@ -511,34 +534,137 @@ def angle_stats(times, angles, t_rev):
 
 
 # ---------------------------------------------------------------------------- the run
-def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous=()):
+def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous=(),
+             checkpoint_every=None, max_steps=None, keep_checkpoint=False):
     """Run a drum (``spec`` a :class:`DrumSpec`, checked here) and return its results dict;
-    with ``out`` write the outputs there (see the module notes)."""
-    from .progress import Progress
+    with ``out`` write the outputs there (see the module notes).
 
+    ``checkpoint_every`` (steps, needs ``out``): write ``out/checkpoint/`` every K turning
+    steps and at every phase boundary (the settled bed, each phase's end), each one whole or
+    not at all; :func:`resume_drum` finishes an interrupted run bit for bit as the
+    uninterrupted run would. The earlier run's outputs ``previous`` are removed when such a
+    run starts (its checkpoint takes their place) and the checkpoint when it ends (unless
+    ``keep_checkpoint``). ``max_steps``: stop after this many turning steps in all (needs
+    ``checkpoint_every``) and return ``{"complete": False, "steps_done": k, "checkpoint":
+    path}``."""
     if threads is not None:
         from .pipeline_checks import set_threads
         set_threads(threads)
     spec = spec.checked()
+    every, max_steps = _check_checkpoint_args(out, checkpoint_every, max_steps)
     drum = Drum(spec)
     drum.check_room()
     t0 = time.perf_counter()
+    cdir = None
+    if every is not None:
+        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
+        if os.path.lexists(cdir) and CHECKPOINT not in previous:
+            raise PecletArgumentError("out", "a directory without a drum checkpoint (finish "
+                                      "that run with resume_drum, or name 'checkpoint' in "
+                                      "previous to replace it)", out)
+        os.makedirs(out, exist_ok=True)
+        clear_outputs(out, previous)
+        previous = ()
+    drum.build()
+    st = dict(k=0, t=0.0, angle=0.0, samples=[], frames=[], snaps=[], seconds=0.0,
+              run=uuid.uuid4().hex, checkpoint_every=every)
+    st["seconds"] = time.perf_counter() - t0
+    if cdir is not None:
+        _checkpoint_write(cdir, spec, drum, st)
+    return _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
+                 keep_checkpoint, time.perf_counter() - st["seconds"])
+
+
+def resume_drum(path, out=None, progress=True, figures=True, threads=None, previous=(),
+                checkpoint_every=None, max_steps=None, keep_checkpoint=False, given=None,
+                names=None):
+    """Finish the drum run checkpointed in ``path`` (a run's output directory or its
+    ``checkpoint/``), bit for bit as the uninterrupted run would, and return its results
+    dict; ``out`` (default: the run's own directory) takes the outputs. ``given``: a dict of
+    :class:`DrumSpec` fields the caller states (e.g. the options given on the command line):
+    each is checked, and one that differs from the run's is refused (a resumed run keeps its
+    parameters), the error naming ``names[field]``. ``checkpoint_every`` None: as the run had
+    it. The other arguments as :func:`run_drum`'s. PecletArgumentError naming ``path`` (or
+    ``names["resume"]``) if it is not a drum run's checkpoint."""
+    nm = lambda f: (names or {}).get(f, f)  # noqa: E731
+    cdir = checkpoint_dir(path, nm("resume"))
+    saved, st, arrays, sim_path = read_checkpoint(cdir, nm("resume"))
+    if given:
+        same_spec(saved, given, names)
+    if threads is not None:
+        from .pipeline_checks import set_threads
+        set_threads(threads)
+    every = st["checkpoint_every"] if checkpoint_every is None else checkpoint_every
+    if out is None:
+        out = os.path.dirname(cdir)
+    every, max_steps = _check_checkpoint_args(out, every, max_steps)
+    from peclet.dem import Simulation
+
+    t0 = time.perf_counter()
+    drum = Drum(saved)
+    drum.sim = Simulation.load(sim_path)
+    drum.wall = int(st["wall"])
+    drum.settle_steps = int(st["settle_steps"])
+    drum.radii = arrays["radii"]
+    st["frames"] = _frames_of(arrays, "frames")
+    st["snaps"] = _frames_of(arrays, "snaps")
+    os.makedirs(out, exist_ok=True)
+    if os.path.abspath(out) != os.path.dirname(cdir):
+        # outputs elsewhere: the checkpoint goes on there (the one read is left as it is)
+        clear_outputs(out, previous)
+        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
+        if every is not None:
+            _checkpoint_write(cdir, saved, drum, st)
+    else:
+        clear_outputs(out, tuple(f for f in previous if f != CHECKPOINT))
+    previous = ()
+    return _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
+                 keep_checkpoint, t0 - st["seconds"])
+
+
+def _check_checkpoint_args(out, every, max_steps):
+    if every is not None:
+        every = check_int("checkpoint_every", every, 0, 10 ** 9) or None    # 0: none
+    if every is not None:
+        if out is None:
+            raise PecletArgumentError("out", "a directory when checkpoint_every is given",
+                                      None)
+    if max_steps is not None:
+        max_steps = check_int("max_steps", max_steps, 0, 10 ** 12)
+        if every is None:
+            raise PecletArgumentError("checkpoint_every", "given with max_steps (a stopped "
+                                      "run resumes from its checkpoint)", None)
+    return every, max_steps
+
+
+class _Stop(Exception):
+    """max_steps reached (the checkpoint is written)."""
+
+
+def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
+          keep_checkpoint, t_start):
+    """Turn the drum from the state ``st`` (step k, clock, angle, what was observed so far)
+    to the end of its schedule, observing and checkpointing; returns the results."""
+    from .progress import Progress
+
+    spec, sim = drum.spec, drum.sim
     sched = drum.schedule()
     total = sum(ph.steps for ph in sched)
-    bar = Progress(total, desc="drum", enabled=progress)
-    sim = drum.build()
+    ends = set(np.cumsum([ph.steps for ph in sched]).tolist())
+    bar = Progress(total, desc="drum", enabled=progress, initial=min(st["k"], total))
     d, R = drum.d, spec.radius * drum.d
     if spec.ends == "caps" and spec.length > 3.0:
         window_half = 0.5 * spec.length * d - d
     else:
         window_half = None
-    every = drum.sample_every()
+    sample = drum.sample_every()
     t_rev = 2.0 * math.pi / drum.omega
     frame_at = {max(1, int(round(total * (i + 1) / spec.frames))) for i in range(spec.frames)}
     snap_at = set(int(round(x)) for x in np.linspace(total - 1, total - 1 - (sched[-1].steps - 1),
                                                      spec.snapshots))
-    samples, frames, snaps = [], [], []
-    drum.angle = 0.0
+    samples, frames, snaps = st["samples"], st["frames"], st["snaps"]
+    drum.angle = st["angle"]
+    stop_at = None if max_steps is None else max_steps
 
     def observe(k, t_turn, angle, phase):
         drum.angle = angle
@@ -546,26 +672,48 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
             frames.append(_frame(drum, k, t_turn))
         if (k - 1) in snap_at:
             snaps.append(_frame(drum, k, t_turn))
-        if phase.name != "spinup" and (k % every == 0):
+        if phase.name != "spinup" and (k % sample == 0):
             X = sim.get_positions()
             window = None if window_half is None else np.abs(X[:, 2]) < window_half
             s = measure(X, sim.get_velocities(), drum.radii, R, phase.omega, d, window)
             s.update(t=t_turn, phase=phase.name, revolutions=angle / (2 * math.pi))
             samples.append(s)
+        if every is not None and (k % every == 0 or k in ends or k == stop_at):
+            st.update(k=k, t=t_turn, angle=angle, seconds=time.perf_counter() - t_start,
+                      checkpoint_every=every)
+            _checkpoint_write(cdir, spec, drum, st)
+        if k == stop_at:
+            raise _Stop
 
-    run_phases(sched, drum.dt, drum.step, drum.turn, observe, bar)
+    if stop_at is not None and st["k"] >= stop_at:
+        bar.close()
+        return dict(complete=False, steps_done=st["k"], checkpoint=cdir)
+    try:
+        run_phases(sched, drum.dt, drum.step, drum.turn, observe, bar,
+                   start=(st["k"], st["t"], st["angle"]))
+    except _Stop:
+        bar.close()
+        return dict(complete=False, steps_done=stop_at, checkpoint=cdir)
+    except KeyboardInterrupt:
+        bar.close()
+        if cdir is not None and os.path.isfile(os.path.join(cdir, POINTER)):
+            with open(os.path.join(cdir, POINTER)) as fh:
+                k = json.load(fh).get("step")
+            print(f"drum: interrupted; the checkpoint at step {k} of {total} resumes it "
+                  f"(peclet drum --resume {os.path.dirname(cdir)})", file=sys.stderr)
+        raise
     bar.close()
-    wall = time.perf_counter() - t0
+    wall = time.perf_counter() - t_start
     meas = [s for s in samples if s["phase"] == "measure"]
     regime, crit = classify(meas)
-    st = angle_stats([s["t"] for s in meas], [s["angle"] for s in meas], t_rev)
-    ang = st if regime != "centrifuging" else dict(st, mean=math.nan)
+    stats = angle_stats([s["t"] for s in meas], [s["angle"] for s in meas], t_rev)
+    ang = stats if regime != "centrifuging" else dict(stats, mean=math.nan)
     fill_meas = _measured_fill(meas, R)
     res = dict(spec=asdict(spec), element=drum.grains["name"], grains=drum.count,
                froude=spec.froude, omega=drum.omega,
                rpm_for_grain_mm=rpm_of_froude(spec.froude, spec.radius, spec.grain_mm),
                wall_speed=drum.omega * R, dt=drum.dt, settle_steps=drum.settle_steps,
-               steps=total, sample_every=every, revolutions_turned=drum.angle / (2 * math.pi),
+               steps=total, sample_every=sample, revolutions_turned=drum.angle / (2 * math.pi),
                regime=regime, mellmann=expected_regimes(spec.froude), criteria=crit,
                angle=ang, fill_measured=fill_meas, state_hash=sim.state_hash(),
                seconds=wall, ms_per_step=1e3 * wall / max(total + drum.settle_steps, 1),
@@ -574,7 +722,166 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
                                               "coverage", "high")} for s in samples])
     if out is not None:
         _write(out, res, drum, frames, snaps, samples, figures, previous)
+        if cdir is not None and not keep_checkpoint and os.path.isdir(cdir):
+            shutil.rmtree(cdir)
     return res
+
+
+# ---------------------------------------------------------------------------- checkpoints
+def checkpoint_dir(path, name="path"):
+    """The checkpoint directory of a drum run at ``path`` (its output directory or the
+    ``checkpoint/`` in it); PecletArgumentError naming ``name`` if there is none."""
+    what = "a drum run's output directory or its checkpoint/ (written by peclet drum)"
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise PecletArgumentError(name, what, path)
+    p = os.path.abspath(os.fspath(path))
+    if not os.path.exists(p):
+        raise PecletArgumentError(name, what, os.fspath(path), "it does not exist")
+    if not os.path.isdir(p):
+        raise PecletArgumentError(name, what, os.fspath(path), "it is a file")
+    for c in (os.path.join(p, CHECKPOINT), p):
+        if os.path.isfile(os.path.join(c, POINTER)):
+            return c
+    done = os.path.isfile(os.path.join(p, "results.json"))
+    raise PecletArgumentError(name, what, os.fspath(path),
+                              "a finished run (its checkpoint is removed at the end unless "
+                              "--keep-checkpoint)" if done else f"no {CHECKPOINT}/{POINTER} "
+                              "in it")
+
+
+def _sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _frames_arrays(prefix, frames):
+    if not frames:
+        return {}
+    return {f"{prefix}_step": np.array([f["step"] for f in frames], np.int64),
+            f"{prefix}_t": np.array([f["t"] for f in frames], np.float64),
+            f"{prefix}_turned": np.array([f["turned"] for f in frames], np.float64),
+            f"{prefix}_X": np.stack([f["X"] for f in frames]),
+            f"{prefix}_V": np.stack([f["V"] for f in frames]),
+            f"{prefix}_shape": np.stack([np.asarray(f["shape"]) for f in frames])}
+
+
+def _frames_of(arrays, prefix):
+    if f"{prefix}_step" not in arrays:
+        return []
+    return [dict(step=int(s), t=float(t), turned=float(a), X=X, V=V, shape=sh)
+            for s, t, a, X, V, sh in zip(*(arrays[f"{prefix}_{k}"] for k in
+                                           ("step", "t", "turned", "X", "V", "shape")))]
+
+
+def _checkpoint_write(cdir, spec, drum, st):
+    """Write step ``st["k"]`` of the run into ``cdir``: ``step-<k>/`` (``sim.npz``, the
+    loop's state ``state.json``, the frames and radii ``arrays.npz``) made whole in a
+    temporary directory and renamed into place, then ``checkpoint.json`` (the spec, the run
+    id, the latest step) replaced atomically, then the older step removed."""
+    os.makedirs(cdir, exist_ok=True)
+    name = f"step-{st['k']:010d}"
+    final = os.path.join(cdir, name)
+    for old in os.listdir(cdir):           # debris of an interrupted write
+        if old.startswith(".tmp-step-"):
+            shutil.rmtree(os.path.join(cdir, old), ignore_errors=True)
+    if os.path.isdir(final):
+        shutil.rmtree(final)
+
+    def fill(tmp):
+        drum.sim.save(os.path.join(tmp, "sim.npz"))
+
+        def w(path):
+            with open(path, "wb") as fh:
+                np.savez(fh, radii=np.asarray(drum.radii, np.float64),
+                         **_frames_arrays("frames", st["frames"]),
+                         **_frames_arrays("snaps", st["snaps"]))
+        atomic_write(os.path.join(tmp, "arrays.npz"), w)
+        state = dict(kind=_KIND, run=st["run"], k=st["k"], t=st["t"], angle=st["angle"],
+                     seconds=st["seconds"], checkpoint_every=st.get("checkpoint_every"),
+                     wall=drum.wall, settle_steps=drum.settle_steps,
+                     samples=st["samples"],
+                     sha256={f: _sha256(os.path.join(tmp, f)) for f in ("sim.npz",
+                                                                        "arrays.npz")})
+
+        def j(path):                       # NaN kept (an angle without a surface)
+            with open(path, "w") as fh:
+                json.dump(state, fh, allow_nan=True)
+        atomic_write(os.path.join(tmp, "state.json"), j)
+
+    atomic_directory(final, fill, prefix=".tmp-step-")
+    write_json(os.path.join(cdir, POINTER), dict(kind=_KIND, run=st["run"], latest=name,
+                                                  step=st["k"], spec=asdict(spec)))
+    for old in os.listdir(cdir):
+        if old.startswith("step-") and old != name:
+            shutil.rmtree(os.path.join(cdir, old), ignore_errors=True)
+
+
+def read_checkpoint(cdir, name="path"):
+    """(checked spec, state dict, arrays dict, path of ``sim.npz``) of the latest step of the
+    checkpoint directory ``cdir`` (see :func:`checkpoint_dir`); a pointer that is not a drum
+    checkpoint's, a missing or damaged part, parts of two runs or a file that is not the one
+    hashed: PecletArgumentError naming ``name``."""
+    shown = cdir
+
+    def bad(detail):
+        return PecletArgumentError(name, "a drum run's output directory or its checkpoint/ "
+                                   "(written by peclet drum)", shown, detail)
+    try:
+        with open(os.path.join(cdir, POINTER)) as fh:
+            ptr = json.load(fh)
+    except (OSError, ValueError):
+        raise bad(f"{POINTER} is not readable JSON") from None
+    if not isinstance(ptr, dict) or ptr.get("kind") != _KIND:
+        raise bad(f"{POINTER} is not a drum checkpoint's (kind "
+                  f"{ptr.get('kind') if isinstance(ptr, dict) else None!r})")
+    try:
+        spec = DrumSpec(**ptr["spec"]).checked()
+        d = os.path.join(cdir, os.path.basename(str(ptr["latest"])))
+        with open(os.path.join(d, "state.json")) as fh:
+            st = json.load(fh)
+        with np.load(os.path.join(d, "arrays.npz"), allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError, KeyError, TypeError, PecletArgumentError) as exc:
+        raise bad(f"an incomplete or damaged checkpoint: {exc}") from None
+    if st.get("kind") != _KIND or st.get("run") != ptr.get("run") or st.get("k") != \
+            ptr.get("step"):
+        raise bad(f"{os.path.basename(d)} is not the step {POINTER} names (parts of two runs)")
+    for f, h in (st.get("sha256") or {}).items():
+        if _sha256(os.path.join(d, f)) != h:
+            raise bad(f"{os.path.basename(d)}/{f} is not the file its state.json hashed")
+    return spec, st, arrays, os.path.join(d, "sim.npz")
+
+
+def same_spec(saved, given, names=None):
+    """Refuse ``given`` (a dict of :class:`DrumSpec` fields) unless the run's checked spec
+    ``saved`` has them: the error names the first differing field (``names[field]``) and
+    the run's value. ``rpm`` is compared as the Froude number it gives."""
+    nm = lambda f: (names or {}).get(f, f)  # noqa: E731
+    base = asdict(saved)
+    unknown = set(given) - set(base)
+    if unknown:
+        raise PecletArgumentError("given", "DrumSpec fields", sorted(unknown))
+    merged = dict(base, **given)
+    if given.get("rpm") is not None:
+        merged["froude"] = None
+    new = asdict(DrumSpec(**merged).checked(names))
+    for k in base:
+        if base[k] != new[k]:
+            flag = "rpm" if k == "froude" and given.get("rpm") is not None else k
+            shown = given.get(flag, new[k])
+            raise PecletArgumentError(nm(flag), f"the resumed run's {_value(saved, flag)} (a "
+                                      "resumed run keeps its parameters: leave the option "
+                                      "out, or start a new run)", shown)
+
+
+def _value(saved, field):
+    if field == "rpm":
+        return f"{rpm_of_froude(saved.froude, saved.radius, saved.grain_mm):.6g} " \
+               f"(Froude {saved.froude:.6g} at {saved.grain_mm:g} mm)"
+    return repr(getattr(saved, field))
 
 
 def _measured_fill(samples, R):
@@ -596,8 +903,6 @@ def _frame(drum, k, t):
 
 
 def _write(out, res, drum, frames, snaps, samples, figures, previous):
-    from peclet.core.files import clear_outputs
-
     os.makedirs(out, exist_ok=True)
     clear_outputs(out, previous)
     files = ["results.json"]

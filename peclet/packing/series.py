@@ -3,7 +3,8 @@
 A kinematic-wall run (the drum, the stirred column) is a list of :class:`Phase` s, each turning
 one wall at a constant angular speed for a number of steps; :func:`run_phases` steps through
 them, keeps the clock and the angle turned, and calls back after every step (sampling, frames,
-snapshots read the state only, so a run's bits do not depend on what is observed).
+snapshots read the state only, so a run's bits do not depend on what is observed), and goes
+on from a given step for a run resumed from its checkpoint.
 :func:`write_series` writes frames as ``frames/frame_NNNN.vtu`` (grain centres as VTK
 vertices with per-grain data, plus optional polylines outlining the walls) and the ``.pvd``
 collection ParaView opens as one time series; the frames directory appears whole or not at all
@@ -29,17 +30,28 @@ class Phase(NamedTuple):
     steps: int
 
 
-def run_phases(phases, dt, step, turn, after_step=None, bar=None):
+def run_phases(phases, dt, step, turn, after_step=None, bar=None, start=None):
     """Run ``phases`` (a list of :class:`Phase`): at the start of each, ``turn(omega)`` sets the
     wall's angular speed; then ``step()`` advances the simulation by ``dt``, and
     ``after_step(k, t, angle, phase)`` sees the global step count k (from 1), the time t since
     the first phase began, the angle turned (rad, the sum of omega dt) and the :class:`Phase`.
     ``bar`` (a :class:`peclet.packing.progress.Progress`) is advanced one step at a time.
+
+    ``start``: None (from the beginning) or the (k, t, angle) a run stopped at (read from a
+    checkpoint): phases that ended by step k are skipped, ``turn`` is called for the phase
+    step k + 1 belongs to and every later one, and the clock and the angle go on from t and
+    angle, so the continued run adds the same numbers in the same order as the uninterrupted
+    one. (``turn`` must only set the speed, as a skipped phase's call is not repeated.)
     Returns (steps, t, angle)."""
-    k, t, angle = 0, 0.0, 0.0
+    k, t, angle = (0, 0.0, 0.0) if start is None else (int(start[0]), float(start[1]),
+                                                          float(start[2]))
+    skip = k
     for ph in phases:
+        if skip and skip >= ph.steps:        # wholly run before the stop
+            skip -= ph.steps
+            continue
         turn(ph.omega)
-        for _ in range(ph.steps):
+        for _ in range(ph.steps - skip):
             step()
             k += 1
             t += dt
@@ -48,6 +60,7 @@ def run_phases(phases, dt, step, turn, after_step=None, bar=None):
                 after_step(k, t, angle, ph)
             if bar is not None:
                 bar.update(1, label=ph.name)
+        skip = 0
     return k, t, angle
 
 
