@@ -9,30 +9,18 @@
 The three work savers must leave every contact and every bit of a run as they were; the tests
 run the same stirred column with each of them disabled and compare state hashes.
 """
-import math
 
 import numba
 import numpy as np
 import pytest
 
-from peclet.dem import Simulation, broadphase, contacts, distgrid
+from peclet.dem import Simulation, broadphase, distgrid
 from peclet.core.geom.kernels import eval_point
-from peclet.core.geom.transforms import quats_to_matrices
 from peclet.packing.stir import StirSpec, StirredColumn
 
+from test_dem_moving_walls import _spheres
+
 CAP = int(numba.config.NUMBA_NUM_THREADS)
-
-
-def _spheres(sim, pos, vel, r=0.5):
-    sid = sim.add_sphere_shape(r)
-    n = len(pos)
-    sim.set_positions(np.asarray(pos, float))
-    sim.set_shape_ids(np.full(n, sid, np.int32))
-    m = 4.0 / 3.0 * math.pi * r ** 3
-    sim.set_inv_mass(np.full(n, 1.0 / m))
-    sim.set_inv_inertia(np.full((n, 3), 1.0 / (0.4 * m * r * r)))
-    sim.set_velocities(np.asarray(vel, float))
-    return sim
 
 
 def _new(n):
@@ -47,11 +35,12 @@ def test_a_fast_body_does_not_widen_the_margin_of_a_slow_pair():
     # (base + 2 v_max dt = 0.025 + 0.2) the slow pair would be a speculative contact
     sim = _new(3)
     _spheres(sim, [(0.0, 0.0, 0.0), (1.1, 0.0, 0.0), (20.0, 0.0, 0.0)],
-             [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (10.0, 0.0, 0.0)])
+             vel=[(0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (10.0, 0.0, 0.0)])
     assert len(sim.detect_contacts()["body_a"]) == 0
     # the fast body's own pairs do get its reach (0.025 + 10 x 0.01): a sphere 0.1 from it
     sim2 = _new(2)
-    _spheres(sim2, [(0.0, 0.0, 0.0), (1.1, 0.0, 0.0)], [(0.0, 0.0, 0.0), (-10.0, 0.0, 0.0)])
+    _spheres(sim2, [(0.0, 0.0, 0.0), (1.1, 0.0, 0.0)],
+             vel=[(0.0, 0.0, 0.0), (-10.0, 0.0, 0.0)])
     c = sim2.detect_contacts()
     assert len(c["body_a"]) == 1 and c["depth"][0] == pytest.approx(-0.1)
 
@@ -69,7 +58,7 @@ def test_a_moving_wall_widens_only_the_margins_of_bodies_it_can_reach():
     # 0.1 above it at both ends, and a third 0.1 beside the
     # first: only the far sphere's wall pair may be speculative.
     _spheres(sim, [(-4.9, 1.1, 0.0), (4.5, 1.1, 0.0), (-4.9, 1.1, 1.1)],
-             [(0.0, 0.0, 0.0)] * 3)
+             vel=[(0.0, 0.0, 0.0)] * 3)
     sim.set_wall_velocity(w, (0.0, 0.0, 0.0), (0.0, 0.0, 4.0), (-5.0, 0.0, 0.0))
     c = sim.detect_contacts()
     assert list(zip(c["body_a"].tolist(), c["body_b"].tolist())) == [(1, -1)]
@@ -123,11 +112,6 @@ def test_verlet_list_and_wall_grids_change_no_bit_of_a_stirred_column(monkeypatc
     if CAP >= 2:
         fast2, _, _ = _stir_hash(steps, threads=2, monkeypatch=monkeypatch)
         assert fast2 == ref
-
-
-def _wall_program(sim, w):
-    geo = sim._geometry()
-    return geo, geo.wall_op[w]
 
 
 def test_wall_grid_bounds_never_exceed_the_signed_field():
@@ -193,7 +177,7 @@ def test_parallel_broad_phase_gives_the_serial_arrays(periodic):
 
 def test_pair_list_is_rebuilt_when_a_body_leaves_its_build_sphere():
     sim = _new(2)
-    _spheres(sim, [(0.0, 0.0, 0.0), (3.0, 0.0, 0.0)], [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
+    _spheres(sim, [(0.0, 0.0, 0.0), (3.0, 0.0, 0.0)], vel=[(0.0, 0.0, 0.0)] * 2)
     assert len(sim.detect_contacts()["body_a"]) == 0
     assert sim._detector._pairs is not None      # a list was built (and is kept)
     # teleport body 1 next to body 0: the kept list (no pair) must not be trusted

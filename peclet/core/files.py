@@ -182,3 +182,14 @@ def clear_outputs(out, previous):
             shutil.rmtree(q)
         elif os.path.lexists(q):
             os.remove(q)
+
+
+def file_sha256(path):
+    """The SHA-256 hex digest of the file at ``path`` (read in 1 MiB blocks)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

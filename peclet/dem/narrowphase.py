@@ -459,8 +459,8 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, tol2, touch, chunks, slots, del
 
     ``tasks`` a :class:`Tasks`; ``pos`` (N, 3) and ``rot`` (N, 3, 3) the bodies' centres and
     home -> world rotations, ``shape_of`` (N,) their shape ids; ``geo`` the
-    :class:`peclet.dem.shapes.Geometry`; hits within the task's margin are kept; ``tol2`` and ``touch``
-    tune the manifold reduction; ``slots`` a :class:`Slots`. Reuse between steps
+    :class:`peclet.dem.shapes.Geometry`; hits within the task's margin are kept; ``tol2``
+    and ``touch`` tune the manifold reduction; ``slots`` a :class:`Slots`. Reuse between steps
     (:mod:`peclet.dem.reuse`): ``old`` (T,) each task's index in ``prev`` (last step's
     :class:`peclet.dem.reuse.ReuseCache`, -1: none), ``cur`` this step's (filled here),
     ``delta`` the scans' extra reach (< 0: nothing listed, every direction scanned).

@@ -23,7 +23,6 @@ any moment leaves ``checkpoint.json`` naming a complete checkpoint.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
@@ -31,7 +30,7 @@ import uuid
 
 import numpy as np
 
-from peclet.core.files import atomic_directory, atomic_write, write_json
+from peclet.core.files import atomic_directory, atomic_write, file_sha256, write_json
 from peclet.core.validation import PecletArgumentError
 
 __all__ = ["POINTER", "is_checkpoint", "init", "write", "read"]
@@ -40,14 +39,6 @@ POINTER = "checkpoint.json"
 _KIND = "peclet pack checkpoint"
 _RUN = "run.json"
 _HASHED = ("sim.npz", "state.json", "ke.npy")
-
-
-def _sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def run_id(path):
@@ -95,7 +86,7 @@ def write(path, sim, state):
             np.save(os.path.join(tmp, "ke.npy"), np.asarray(state.ke, dtype=np.float64))
             write_json(os.path.join(tmp, _RUN), dict(
                 kind=_KIND, run=run,
-                sha256={f: _sha256(os.path.join(tmp, f)) for f in _HASHED}))
+                sha256={f: file_sha256(os.path.join(tmp, f)) for f in _HASHED}))
 
         atomic_directory(final, fill, prefix=".tmp-ckpt-")
     write_json(os.path.join(p, POINTER), dict(kind=_KIND, run=run, latest=name,
@@ -165,7 +156,7 @@ def _check_parts(name, p, ids, d, step_run):
     if d is not None and step_run is not None:
         for f, h in (step_run.get("sha256") or {}).items():
             fp = os.path.join(d, f)
-            if not os.path.isfile(fp) or _sha256(fp) != h:
+            if not os.path.isfile(fp) or file_sha256(fp) != h:
                 raise PecletArgumentError(name, what, p, f"{os.path.basename(d)}/{f} is not "
                                           "the file its run.json hashed (from another run?)")
 

@@ -78,7 +78,6 @@ only driver is a turning wall, so the drum does not subclass it.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -91,7 +90,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from peclet.core import geom
-from peclet.core.files import atomic_directory, atomic_write, clear_outputs, write_json
+from peclet.core.files import (atomic_directory, atomic_write, clear_outputs, file_sha256,
+                               write_json)
 from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
 
 from .series import Phase, grains_mesh, run_phases, write_series
@@ -749,14 +749,6 @@ def checkpoint_dir(path, name="path"):
                               "in it")
 
 
-def _sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _frames_arrays(prefix, frames):
     if not frames:
         return {}
@@ -803,7 +795,7 @@ def _checkpoint_write(cdir, spec, drum, st):
                      seconds=st["seconds"], checkpoint_every=st.get("checkpoint_every"),
                      wall=drum.wall, settle_steps=drum.settle_steps,
                      samples=st["samples"],
-                     sha256={f: _sha256(os.path.join(tmp, f)) for f in ("sim.npz",
+                     sha256={f: file_sha256(os.path.join(tmp, f)) for f in ("sim.npz",
                                                                         "arrays.npz")})
 
         def j(path):                       # NaN kept (an angle without a surface)
@@ -850,7 +842,7 @@ def read_checkpoint(cdir, name="path"):
             ptr.get("step"):
         raise bad(f"{os.path.basename(d)} is not the step {POINTER} names (parts of two runs)")
     for f, h in (st.get("sha256") or {}).items():
-        if _sha256(os.path.join(d, f)) != h:
+        if file_sha256(os.path.join(d, f)) != h:
             raise bad(f"{os.path.basename(d)}/{f} is not the file its state.json hashed")
     return spec, st, arrays, os.path.join(d, "sim.npz")
 
