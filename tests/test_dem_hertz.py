@@ -358,16 +358,20 @@ def test_other_bad_calls():
         sim.step_hertz(1, 1e-6)
 
 
-def test_composed_particles_refused():
+def test_composed_particle_in_free_flight():
+    # composed particles are accepted (their contacts: tests/test_dem_hertz_composed.py); one
+    # far from everything falls freely: v = -g t after n substeps of the kick-drift
     b = geom.SceneBuilder()
     root = b.add_leaf("box", [0.01, 0.01, 0.01])
     ni, nr, _, _ = b.encode()
     sim = Simulation(1)
     sim.add_scene_shape(ni, nr, root, np.array([[0.01, 0.0, 0.0], [-0.01, 0, 0]]), 0.02)
     sim.set_positions([[0, 1, 0]])
+    sim.set_gravity(0, -G, 0)
     sim.set_hertz_material(0, 1e9, 0.3)
-    with pytest.raises(PecletArgumentError, match="composed"):
-        sim.step_hertz(1, 1e-7)
+    sim.step_hertz(10, 1e-7)
+    assert sim.num_contacts() == 0
+    assert sim.get_velocities()[0, 1] == pytest.approx(-G * 1e-6, rel=1e-12)
 
 
 def test_load_refuses_a_partial_hertz_save(tmp_path):

@@ -718,17 +718,23 @@ class Simulation:
 
     def step_hertz(self, substeps=1, dt=None, skin_frac=None):
         """Advance by ``substeps`` (an integer in [1, 10**6]) explicit Hertz–Mindlin substeps of
-        ``dt`` each (else the :meth:`set_dt` value; finite, > 0), spheres only (see
-        :mod:`peclet.dem.hertz` for the force law, the damping that reproduces each pair's
-        ``e_n``, the tangential history and the integrator). ``skin_frac`` (in (0, 10], default
-        ``hertz.DEFAULT_SKIN_FRACTION``) is the skin of the candidate list as a fraction of the
-        smallest radius: contacts are detected within it and the list is reused while no pair
-        can have closed it; it sets the speed only, never the result (bit for bit). Raises
-        PecletArgumentError when ``dt`` exceeds ``hertz.RAYLEIGH_FRACTION`` of the smallest
-        Rayleigh time, for a material id without moduli, a composed particle or ``e_n`` below
-        ``hertz.E_MIN``; :class:`StepError` when
-        the state goes non-finite or runs away (the state of that substep's start is kept).
-        The impulse :meth:`step` is unaffected; the two engines keep separate contact caches.
+        ``dt`` each (else the :meth:`set_dt` value; finite, > 0), for spheres and composed
+        particles (see :mod:`peclet.dem.hertz` for the force law, one contact per touching
+        patch of a composed particle with R* from both surfaces' curvatures, the damping that
+        reproduces each pair's ``e_n``, the tangential history and the integrator).
+        ``skin_frac`` (in (0, 10], default ``hertz.DEFAULT_SKIN_FRACTION``) is the skin of the
+        candidate list as a fraction of the smallest radius: contacts are detected within it
+        and the list is reused while no pair can have closed it; for spheres it sets the speed
+        only, never the result (bit for bit); a composed particle's patch solves restart from
+        new seeds at each rebuild and at each call, so its bits depend on the skin and the
+        call pattern (to round-off), never on the thread count. Raises PecletArgumentError
+        when ``dt`` exceeds ``hertz.RAYLEIGH_FRACTION`` of the smallest Rayleigh time, for a
+        material id without moduli or ``e_n`` below ``hertz.E_MIN``;
+        :class:`peclet.dem.hertz.HertzPatchError` (a PecletArgumentError naming both bodies)
+        for a touching patch the law cannot hold (flat, line, edge or corner contact, too deep
+        or too many patches); :class:`StepError` when the state goes non-finite or runs away
+        (in both cases the state of that substep's start is kept). The impulse :meth:`step`
+        is unaffected; the two engines keep separate contact caches. Sleeping does not apply.
         """
         from peclet.dem import hertz
 
