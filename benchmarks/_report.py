@@ -23,6 +23,14 @@ def write(name: str, payload: dict) -> Path:
     return write_json(RESULTS / f"{name}.json", {"machine": machine(), **payload})
 
 
+def read(name: str) -> dict:
+    """results/<name>.json as written by :func:`write`, without its machine info."""
+    with open(RESULTS / f"{name}.json") as f:
+        d = json.load(f)
+    d.pop("machine", None)
+    return d
+
+
 def write_json(path, data) -> Path:
     """``data`` as indented JSON at ``path``, atomically (peclet.core.files.atomic_write)."""
     from peclet.core.files import atomic_write

@@ -45,16 +45,9 @@ def timed_window(path, steps, threads):
     return 1e3 * (time.perf_counter() - t0) / (steps - 1), sim.state_hash()
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--grain-radius", type=float, default=0.4)
-    ap.add_argument("--revolutions", type=float, default=5.0)
-    ap.add_argument("--window", type=int, default=200)
-    a = ap.parse_args(argv)
-    cap = int(numba.config.NUMBA_NUM_THREADS)
-    spec = StirSpec(grain_radius=a.grain_radius, revolutions=a.revolutions, frames=0).checked()
-    res = run_stir(spec, out=None, progress=True, figures=False)
-    # the timing window: a fresh column, settled and stirred for 100 steps, saved
+def window_timing(spec, window, cap):
+    """{threads: (ms/step, hash)} over ``window`` stirring steps at 1 and 2 threads, from one
+    saved state: a fresh column, settled and stirred for 100 steps."""
     col = StirredColumn(spec)
     sim = col.build()
     for _ in range(int(math.ceil(spec.settle / spec.dt))):
@@ -65,8 +58,36 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "window.npz")
         sim.save(path)
-        timing = {t: timed_window(path, a.window, t) for t in sorted({1, min(2, cap)})}
+        timing = {t: timed_window(path, window, t) for t in sorted({1, min(2, cap)})}
     numba.set_num_threads(cap)
+    return timing
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--grain-radius", type=float, default=0.4)
+    ap.add_argument("--revolutions", type=float, default=5.0)
+    ap.add_argument("--window", type=int, default=200)
+    ap.add_argument("--window-only", action="store_true",
+                    help="only the timing window (on a quiet machine), written into the "
+                         "existing results of the whole run")
+    a = ap.parse_args(argv)
+    cap = int(numba.config.NUMBA_NUM_THREADS)
+    spec = StirSpec(grain_radius=a.grain_radius, revolutions=a.revolutions, frames=0).checked()
+    if a.window_only:
+        timing = window_timing(spec, a.window, cap)
+        payload = _report.read("stir")
+        payload.update(ms_per_step={str(t): ms for t, (ms, _) in timing.items()},
+                       window_steps=a.window,
+                       same_bits_1_vs_2=len({h for _, h in timing.values()}) == 1)
+        _report.write("stir", payload)
+        print(_report.table([(f"ms/step, {t} thread(s), {a.window} steps", f"{ms:.1f}")
+                             for t, (ms, _) in timing.items()]
+                            + [("same bits at 1 and 2 threads", payload["same_bits_1_vs_2"])],
+                            ["stirred column, timing window", "value"]))
+        return
+    res = run_stir(spec, out=None, progress=True, figures=False)
+    timing = window_timing(spec, a.window, cap)
     s = res["samples"]
     curve = [dict(revolution=r, lacey=min(s, key=lambda x: abs(x["revolutions"] - r))["lacey"])
              for r in range(int(spec.revolutions) + 1)]
