@@ -222,10 +222,12 @@ _THREAD_SCRIPT = textwrap.dedent("""
 """)
 
 
-def _run_threads(threads, parallel_min):
+def _run_threads(threads, parallel_min, script=None, timeout=600):
+    """The output words of ``script`` (default the pile above) run in a child with
+    NUMBA_NUM_THREADS = ``threads`` and the Hertz kernels' parallel threshold ``parallel_min``."""
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
-    out = subprocess.run([sys.executable, "-c", _THREAD_SCRIPT, str(parallel_min)], env=env,
-                         capture_output=True, text=True, timeout=600)
+    out = subprocess.run([sys.executable, "-c", script or _THREAD_SCRIPT, str(parallel_min)],
+                         env=env, capture_output=True, text=True, timeout=timeout)
     assert out.returncode == 0, out.stderr
     return out.stdout.split()
 

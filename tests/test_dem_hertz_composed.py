@@ -11,9 +11,6 @@ The particles come from peclet.dem.scene_particle at a low resolution (a few hun
 the patch law does not depend on the probe count, only the seeding of the patches does.
 """
 import math
-import os
-import subprocess
-import sys
 import textwrap
 
 import numpy as np
@@ -23,6 +20,8 @@ from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
 from peclet.dem import Simulation, hertz, scene_particle
 from validation import chung_ooi
+
+from test_dem_hertz import _run_threads as run_hertz_threads
 
 G = 9.81
 R = 0.01
@@ -377,11 +376,7 @@ _THREAD_SCRIPT = textwrap.dedent("""
 
 
 def _run_threads(threads, parallel_min):
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
-    out = subprocess.run([sys.executable, "-c", _THREAD_SCRIPT, str(parallel_min)], env=env,
-                         capture_output=True, text=True, timeout=1200)
-    assert out.returncode == 0, out.stderr
-    return out.stdout.split()
+    return run_hertz_threads(threads, parallel_min, _THREAD_SCRIPT, timeout=1200)
 
 
 def test_composed_same_bits_at_1_and_2_threads_and_serial():
