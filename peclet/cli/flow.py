@@ -41,8 +41,9 @@ def add_parser(sub):
     a("--axis", default="y", help="flow direction x, y (the bed's axis, default) or z")
     a("--window", default=None, help="y0,y1: the bulk window in D (default: the page's, 1 D "
       "above the floor to 0.8 D below the highest centre)")
-    a("--y-mode", default="mirror", help="mirror (window + its mirror image: periodic without "
-      "a seam; default), wrap (periodic with a seam) or open (refused: no walls)")
+    a("--y-mode", default="wrap", help="wrap (the window periodic onto itself, with a seam; "
+      "default), mirror (window + its mirror image: no seam, but k along y too high: "
+      "peclet.flow.permeability) or open (refused: no walls)")
     a("--re", default="0.01", help="target Reynolds number U D / nu in (0, 10] (default 0.01)")
     a("--tol", default="1e-6", help="relative convergence tolerance on the superficial "
       "velocity (default 1e-6)")

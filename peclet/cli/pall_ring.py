@@ -2,11 +2,14 @@
 
     peclet pall-ring [--out DIR] [--overwrite] [--rings N] [--seed S] [--threads T]
                      [--steps-scale F] [--box L] [--mc-samples K] [--shell-points M]
-                     [--animation] [--no-figures] [--quiet]
+                     [--animation] [--no-figures] [--quiet] [--flow [--flow-resolution D/N]]
 
 runs the reference page end to end (:func:`peclet.packing.pipeline.run`), prints the page's
 Results table with our numbers beside the page's, and writes the figures, the frozen pack
-(``pall_ring_pack.npz``) and ``results.json`` into DIR.
+(``pall_ring_pack.npz``) and ``results.json`` into DIR. With ``--flow`` the frozen pack's
+permeability k and its dP/L against the Ergun viscous term (lattice Boltzmann,
+:mod:`peclet.flow`, at ``--flow-resolution``, default D/8) are added to the Results table and
+to results.json (``flow``).
 
 Every option is checked before the ring is built (the rules and caps are stated in
 :mod:`peclet.packing.pipeline_checks`): a bad one is a single ``peclet pall-ring: error:``
@@ -70,6 +73,12 @@ def add_parser(sub):
                     help="also render the pour as pour.gif (adds 10-20 s)")
     pr.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     pr.add_argument("--quiet", action="store_true", help="no progress bar")
+    pr.add_argument("--flow", action="store_true",
+                    help="also push a slow flow through the frozen pack (peclet.flow) and add "
+                    "k and dP/L / Ergun to the Results table and results.json")
+    pr.add_argument("--flow-resolution", default=None,
+                    help="with --flow: cells per ring diameter, D/N or N with N in [4, 64] "
+                    "and box * N a whole number (default D/8)")
     return pr
 
 
@@ -86,9 +95,19 @@ def run(args):
               shell_points=_as("--shell-points", args.shell_points, int),
               overwrite=args.overwrite)
     pipeline_checks.check_run(**kw, cli=True)
+    flow = None
+    if args.flow_resolution is not None and not args.flow:
+        from peclet.core.validation import PecletArgumentError
+        raise PecletArgumentError("--flow-resolution", "given only with --flow",
+                                  args.flow_resolution)
+    if args.flow:
+        from .flow import parse_resolution
+        flow = pipeline.check_flow(parse_resolution(args.flow_resolution or "D/8",
+                                                    "--flow-resolution"),
+                                   kw["box"], "--flow-resolution")
     if kw["threads"] is not None:
         pipeline.set_threads(kw["threads"], "--threads")
     res = pipeline.run(**kw, progress=not args.quiet, write_figures=not args.no_figures,
-                       animation=args.animation)
+                       animation=args.animation, flow=flow)
     print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
     return 0

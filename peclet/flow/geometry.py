@@ -178,18 +178,29 @@ def _illinois(phi, a, d, lo, hi, flo, fhi, tol, max_iter):
     return hi
 
 
-def build_geometry(grid: Grid, phi, samples=8, lipschitz=True):
+def build_geometry(grid: Grid, phi, samples=8, lipschitz=True, seams=(False, False, False)):
     """Classify the nodes of ``grid`` with the field ``phi`` and find every cut link.
 
     ``phi(points (N, 3)) -> (N,)`` world-frame field, solid where < 0 (periodic on the grid's
     periodic axes: the caller's field must repeat with the grid's period). ``samples`` points
     per link search for a crossing; ``lipschitz`` lets a link whose end values prove it clear
     (phi(a) + phi(b) > |b - a|) skip the search (pass False for a field that is not
-    1-Lipschitz: every link near a wall is then searched). Returns a :class:`LatticeGeometry`.
+    1-Lipschitz: every link near a wall is then searched). ``seams``: per axis, True where the
+    field is discontinuous across the periodic wrap (a window wrapped onto itself): links
+    that wrap on that axis are always searched. Returns a :class:`LatticeGeometry`.
+
+    Every link is cut from both ends or from neither (a link's two searches see the same
+    samples only up to round-off, and at a seam or a grazing wall they can disagree): where
+    only one end found a crossing at q, the other end gets one at 1 - q. Without this a
+    population would be both bounced back and streamed (or neither), and mass, momentum and
+    the flux over uncut links would not balance.
     """
     if not isinstance(grid, Grid):
         raise PecletArgumentError("grid", "a peclet.flow.geometry.Grid", grid)
     samples = check_int("samples", samples, 2, 1024)
+    if isinstance(seams, (str, bytes)) or not hasattr(seams, "__len__") or len(seams) != 3:
+        raise PecletArgumentError("seams", "3 bools, one per axis", seams)
+    seam = np.array([bool(v) for v in seams])
     nx, ny, nz = grid.dims
     dims = np.array(grid.dims)
     per = np.array(grid.periodic)
@@ -215,12 +226,16 @@ def build_geometry(grid: Grid, phi, samples=8, lipschitz=True):
 
     # per direction: the neighbour's fluid index (-1 solid or outside) and whether cut
     nbr = np.full((Q, n), -1, np.int64)
+    far = np.full((Q, n), -1, np.int64)
     cut_q = np.full((Q, n), np.nan)
     thin = 0
     for d in range(1, Q):
         c = ijk + C[d]
         inside = np.ones(n, bool)
+        wraps = np.zeros(n, bool)
         for a in range(3):
+            if seam[a]:
+                wraps |= (c[:, a] < 0) | (c[:, a] >= dims[a])
             if per[a]:
                 c[:, a] %= dims[a]
             else:
@@ -233,7 +248,7 @@ def build_geometry(grid: Grid, phi, samples=8, lipschitz=True):
         if len(out):
             far_phi[out] = np.asarray(phi(grid.points(ijk[out] + C[d])), np.float64)
         length = grid.h * float(np.sqrt((C[d] ** 2).sum()))
-        search = far_phi <= 0.0
+        search = (far_phi <= 0.0) | wraps
         if lipschitz:
             search |= phi_f + far_phi <= length
         else:
@@ -255,10 +270,24 @@ def build_geometry(grid: Grid, phi, samples=8, lipschitz=True):
                 "periodic", f"periodic on axis {_AXES[a_]} or walls closing it",
                 grid.periodic, f"axis {_AXES[a_]} is not periodic and fluid leaves the box "
                 f"through it at node {ijk[leak[0]].tolist()}: {len(leak)} links without a wall")
+        far[d] = other
+        cut_q[d] = q
+    # one verdict per link: cut from both ends or neither
+    for d in range(1, Q):
+        o = OPP[d]
+        m = far[d]
+        has = np.flatnonzero(m >= 0)
+        mine = ~np.isnan(cut_q[d][has])
+        theirs = ~np.isnan(cut_q[o][m[has]])
+        fix = has[theirs & ~mine]
+        if len(fix):
+            cut_q[d][fix] = np.clip(1.0 - cut_q[o][m[fix]], 1e-9, 1.0)
+    for d in range(1, Q):
+        other = far[d].copy()
+        q = cut_q[d]
         thin += int(np.count_nonzero((other >= 0) & ~np.isnan(q)))
         other[~np.isnan(q)] = -1
         nbr[d] = other
-        cut_q[d] = q
     # pull table: f_i at n comes from n - C[i] along the link of n in direction OPP[i]
     nb = np.empty((Q, n), np.int64)
     nb[0] = np.arange(n)

@@ -26,7 +26,8 @@ from .pipeline_checks import OUTPUTS, check_run, clear_outputs, set_threads
 from .pour import pour
 from .progress import ms_per_step
 
-__all__ = ["run", "check_run", "PAGE", "results_table", "set_threads", "OUTPUTS"]
+__all__ = ["run", "check_run", "PAGE", "results_table", "set_threads", "OUTPUTS", "check_flow",
+           "flow_summary", "FLOW_TOL"]
 
 #: The reference page's Results (Step 7 table and the text), for the side-by-side table.
 PAGE = dict(cert_violating=0.0, sign_exact_violating=0.2468, sign_exact_worst=0.7071,
@@ -58,7 +59,7 @@ def _page_floor(box):
 def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
         mc_samples=400_000, quad_n=32, shell_resolution=112, shell_points=1200,
         sweep=SWEEP_T, sweep_n=32, mesh_n=150, progress=True, write_figures=True,
-        animation=False, particle=None, log=print, overwrite=False):
+        animation=False, particle=None, log=print, overwrite=False, flow=None):
     """Run the page end to end; returns the results dict (also written to results.json).
 
     rings: number of rings (>= 1); seed: start-cloud seed; threads: numba threads (None keeps
@@ -72,7 +73,11 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     (in D) for Step 6 and sweep_n their quadrature resolution; mesh_n: marching-cubes
     lattice for the surface area; overwrite: replace the files of an earlier run in ``out``
     (without it such a directory is refused; with it those files are removed first, so no old
-    figure stays beside new results; other files in ``out`` are never touched).
+    figure stays beside new results; other files in ``out`` are never touched); flow: None
+    (default) or a lattice resolution in cells per D, in [4, 64], that makes the box side a
+    whole number of cells (e.g. 8): then the frozen pack's permeability is computed
+    (:func:`peclet.flow.permeability`, its first bulk window wrapped, slow flow along y) and
+    k and dP/L against Ergun go into ``res["flow"]`` and the Results table.
 
     Every argument is checked before any work
     (:func:`~peclet.packing.pipeline_checks.check_run`, which states the rules: ring cap, box
@@ -91,6 +96,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
                      mesh_n=mesh_n, progress=progress, write_figures=write_figures,
                      animation=animation, log=log)
     rings, seed, box, out = plan.rings, plan.seed, plan.box, plan.out
+    flow = check_flow(flow, box)
     mc_samples, shell_points, steps_scale = plan.mc_samples, plan.shell_points, plan.steps_scale
     protocol = plan.protocol
     if threads is not None:
@@ -233,6 +239,12 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     res["sweep"] = rows
     timing["sweep"] = time.perf_counter() - t
 
+    # ---- optional: the flow through the frozen pack (peclet.flow)
+    if flow is not None:
+        t = time.perf_counter()
+        res["flow"] = flow_summary(pack, flow, progress=progress)
+        timing["flow"] = time.perf_counter() - t
+
     # ---- figures
     if write_figures:
         t = time.perf_counter()
@@ -259,6 +271,53 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     if log is not None:
         log(results_table(res))
     return res
+
+
+#: Convergence tolerance of the pipeline's optional flow run (relative, on the superficial
+#: velocity; peclet.flow.solver): k to about 4 digits, in a few thousand steps at D/8.
+FLOW_TOL = 1e-5
+
+
+def check_flow(flow, box, name="flow"):
+    """``flow`` as a float resolution (cells per D) or None; refused (PecletArgumentError
+    naming ``name``) outside [4, 64] or when the box side is not a whole number of cells."""
+    from peclet.core.validation import PecletArgumentError, check_float
+
+    if flow is None:
+        return None
+    r = check_float(name, flow, 4.0, 64.0)
+    if abs(box * r - round(box * r)) > 1e-9 * max(1.0, box * r):
+        raise PecletArgumentError(name, f"a resolution N in [4, 64] cells per D with the box "
+                                  f"side ({box:g} D) a whole number of cells, box * N integer",
+                                  flow)
+    return r
+
+
+def flow_summary(pack, resolution, progress=False):
+    """Permeability of ``pack`` at ``resolution`` cells per D (peclet.flow.permeability with
+    :data:`FLOW_TOL`, a progress bar when ``progress``): the JSON-ready dict stored as
+    ``res["flow"]`` (k in D^2 and cells^2, dP/L in lattice units, the Ergun viscous ratios
+    (Sauter and envelope diameters), the Kozeny constant, porosity, steps, the thin-wall
+    warning if any)."""
+    import warnings
+
+    from peclet.flow import ThinWallWarning, permeability
+
+    from .progress import Progress
+
+    bar = Progress(100_000, desc=f"flow D/{resolution:g}", enabled=bool(progress), note=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThinWallWarning)
+        try:
+            pf = permeability(pack, resolution=resolution, tol=FLOW_TOL, progress=bar)
+        finally:
+            bar.close()
+    s = pf.summary()
+    keep = ("resolution", "k_D2", "k_lattice", "dpdl_lattice", "Re", "eps", "eps_envelope",
+            "d_sauter", "d_envelope", "kozeny", "ergun_ratio_sauter", "ergun_ratio_envelope",
+            "drag_cv", "solid_drag_balance", "steps", "converged", "fluid_nodes", "dims",
+            "window", "y_mode", "memory_MiB", "thin_wall_warning")
+    return {k: s[k] for k in keep if k in s}
 
 
 def results_table(res):
@@ -313,6 +372,15 @@ def results_table(res):
          "3700 steps in 299 s (81 ms/step)"),
         ("total runtime", f"{res['timing']['total']:.1f} s", f"{P['runtime_s']:.0f} s"),
     ]
+    fl = res.get("flow")
+    if fl is not None:
+        rows[-1:-1] = [
+            (f"permeability k (lattice Boltzmann, D/{fl['resolution']:g})",
+             f"{fl['k_D2']:.4g} D^2 (eps {fl['eps']:.3f} on the lattice, Re {fl['Re']:.2g}, "
+             f"{fl['steps']} steps)", "-"),
+            ("dP/L / Ergun viscous term (Sauter d; envelope d)",
+             f"{fl['ergun_ratio_sauter']:.3f}; {fl['ergun_ratio_envelope']:.3f} (Kozeny "
+             f"constant {fl['kozeny']:.2f})", "-")]
     w0 = max(len(r[0]) for r in rows)
     w1 = max(len(r[1]) for r in rows)
     lines = [f"{'claim':<{w0}}  {'peclet (this run)':<{w1}}  the page",
