@@ -21,22 +21,15 @@ from peclet.core.validation import PecletArgumentError
 from peclet.dem import Simulation, hertz, scene_particle
 from validation import chung_ooi
 
+# a few bodies: one thread for every test here, as in the sphere tests (the thread test below
+# runs its own subprocesses)
+from test_dem_hertz import _one_thread  # noqa: F401 (an autouse fixture)
 from test_dem_hertz import _run_threads as run_hertz_threads
 
 G = 9.81
 R = 0.01
 RHO = 2500.0
 NU = 0.3
-
-
-@pytest.fixture(autouse=True)
-def _one_thread():
-    # a few bodies: one thread (the thread test below runs its own subprocesses)
-    import numba
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    yield
-    numba.set_num_threads(before)
 
 
 def _build(b, root, half, probes=400):
