@@ -610,7 +610,7 @@ class Simulation:
                 wi = solver.world_inv_inertias(q, inv_inertia)
                 w += dt * np.einsum("nij,nj->ni", wi, self._ext_torque)
         self._guard(x, q, v, w)                     # before any kernel sees a bad value
-        wall_moving = self._wallmo.moving_walls()
+        wall_moving = None if frozen is None else self._wallmo.moving_walls()
         c = self._detect(x, quats_to_matrices(q), *self._margins(v, w, dt, x), frozen,
                          None if frozen is None else ~wall_moving)
         t1 = time.perf_counter()
