@@ -1,14 +1,18 @@
 """Compiling the DEM step's kernels ahead, beside other work (a cold first run's longest wait).
 
 On a cold Numba cache the first ``Simulation.step`` compiles the broad phase, the narrow phase,
-the solvers and the rotation (about a minute on one core). A run that first measures its
-element by quadrature (itself a long compilation) can have the step's kernels compiled at the
-same time in a child process on the other core: :func:`start_background` starts
-``compile_step_kernels`` in a child when the kernels are not cached, :func:`finish` waits for
-it before the first step, which then loads them from the cache. The child writes only Numba's
-cache (the same entries the run would write itself); if it fails, the run compiles as before.
-Kernel signatures do not depend on values, so a tiny simulation of the same kinds of objects
-(a composed shape, a sphere, a wall, periodic axes) compiles exactly what a page run needs.
+the solvers and the rotation (about a minute of one core). A run that first measures its element
+by quadrature (itself a long compilation) can have the step's kernels compiled at the same time
+in child processes: :func:`start_background` starts two children when the kernels are not
+cached, one compiling the detection (broad and narrow phase, most of the time) and one the rest
+of the step (velocity and position solves, rotation, guards) by stepping with a stand-in
+detection, so that both groups compile at once instead of one after the other. :func:`finish`
+waits for them before the first step, which then loads every kernel from the cache. The
+children write only Numba's cache (the same entries the run would write itself); if one fails,
+the run compiles what is missing as before. Kernel signatures do not depend on values, so a tiny
+simulation of the same kinds of objects (a composed shape, a sphere, a wall, periodic axes)
+compiles exactly what a page run needs (``tests/test_dem_warm.py`` checks that the stand-in
+detection gives each kernel the signature the real one does).
 """
 from __future__ import annotations
 
@@ -17,12 +21,16 @@ import sys
 
 import numpy as np
 
-__all__ = ["compile_step_kernels", "start_background", "finish"]
+__all__ = ["compile_step_kernels", "start_background", "finish", "PARTS"]
+
+#: what a child compiles: "all" (a whole step: detection first, then the rest, which it loads
+#: from the cache when the "tail" child has written it by then) or "tail" (the step after
+#: detection, stepped with a stand-in detection)
+PARTS = ("all", "tail")
 
 
-def compile_step_kernels():
-    """Step a tiny simulation (a composed box, a sphere, a floor wall, periodic x and z) so
-    that every kernel of the impulse step is compiled into Numba's cache."""
+def _tiny_simulation():
+    # a composed box, a sphere, a floor wall, periodic x and z: every kind a page run steps
     from peclet.core.geom import SceneBuilder
     from peclet.dem import Simulation
 
@@ -45,25 +53,53 @@ def compile_step_kernels():
     sim.set_positions(np.array([[0.0, 0.21, 0.0], [0.1, 0.7, 0.0], [0.9, 0.2, 0.3],
                                 [-0.9, 0.6, 0.4]]))
     sim.set_shape_ids(np.array([0, 0, 1, 1]))
+    return sim
+
+
+def stand_in_contacts():
+    """Two contacts laid out as ``narrowphase.gather`` lays them out (the same dtypes, shapes
+    and contiguity): body 2 on the floor wall and body 1 on body 0. What the tail compile
+    steps with instead of a detection."""
+    from peclet.dem.contacts import Contacts
+
+    return Contacts(a=np.array([2, 1], np.int64), b=np.array([-1, 0], np.int64),
+                    shift=np.zeros((2, 3)),
+                    point=np.array([[0.9, 0.0, 0.3], [0.05, 0.45, 0.0]]),
+                    normal=np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]]),
+                    gap=np.array([0.0, 0.01]), feat=np.zeros(2, np.int64))
+
+
+def compile_step_kernels(part="all"):
+    """Step a tiny simulation so that the kernels of the impulse step's ``part`` (one of
+    :data:`PARTS`) are compiled into Numba's cache. Returns the simulation stepped."""
+    if part not in PARTS:
+        raise ValueError(f"part must be one of {PARTS}, got {part!r}")
+    sim = _tiny_simulation()
+    if part == "tail":
+        sim._detect = lambda *args, **kwargs: stand_in_contacts()
     for _ in range(3):
         sim.step(1e-3)
+    return sim
 
 
 def start_background():
-    """A child process compiling the step's kernels, or None when they are cached already (or
-    the cache cannot be read)."""
+    """Children compiling the step's kernels (the detection in one, the rest in the other),
+    or None when they are cached already (or the cache cannot be read)."""
     from peclet.dem.simulation import step_kernels_cached
 
     if step_kernels_cached() is not False:
         return None
-    code = "from peclet.dem.warm import compile_step_kernels; compile_step_kernels()"
-    return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+    # the tail first: it is short, and the detection child loads it when it gets there
+    return [subprocess.Popen([sys.executable, "-c",
+                              "from peclet.dem.warm import compile_step_kernels; "
+                              f"compile_step_kernels({part!r})"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for part in ("tail", "all")]
 
 
-def finish(child):
-    """Wait for :func:`start_background`'s child (None: nothing to wait for). Returns True if
-    it compiled, False if it failed (the run then compiles the kernels itself)."""
-    if child is None:
+def finish(children):
+    """Wait for :func:`start_background`'s children (None: nothing to wait for). Returns True
+    if they all compiled, False if one failed (the run then compiles what is missing itself)."""
+    if children is None:
         return True
-    return child.wait() == 0
+    return all([child.wait() == 0 for child in children])

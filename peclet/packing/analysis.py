@@ -31,7 +31,7 @@ from peclet.core.geom.program import concatenate
 from .freeze import Pack
 
 __all__ = ["PackGeometry", "bulk_windows", "cover_fractions", "probe_overlap", "orientation",
-           "floor_and_box", "certificate_check", "wall_sweep", "fraction_se"]
+           "floor_and_box", "certificate_check", "wall_sweep", "sweep_fractions", "sweep_voidage", "fraction_se"]
 
 
 @njit(cache=True, parallel=True)
@@ -294,8 +294,15 @@ def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
     ring :func:`~peclet.packing.elements.pall_ring_of_thickness`). Volumes come from
     ``SceneBuilder.body_properties`` (quadrature, not Monte Carlo) with its volume_error.
     Returns a list of dicts: t, t_over_d, s, s_err, eps, eps_err (propagated from s_err and
-    f_env_se, added in quadrature).
+    f_env_se, added in quadrature). The same as :func:`sweep_voidage` of
+    :func:`sweep_fractions` (which needs no pack: a run computes it while it waits).
     """
+    return sweep_voidage(sweep_fractions(thicknesses, make, **quad_kw), f_env, f_env_se)
+
+
+def sweep_fractions(thicknesses, make=None, **quad_kw):
+    """Per wall thickness t (in D): t, t_over_d, s = V_solid(t) / V_env and its error s_err, by
+    quadrature (see :func:`wall_sweep` for ``make`` and ``quad_kw``)."""
     from .elements import pall_ring_of_thickness
 
     make = pall_ring_of_thickness if make is None else make
@@ -304,10 +311,16 @@ def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
         el = make(float(t))
         lo, hi = el.bounds
         props = el.builder.body_properties(el.root, lo, hi, **quad_kw)
-        s = props.volume / el.envelope_volume
-        s_err = float(props.volume_error) / el.envelope_volume
         d = 2.0 * el.params["r_outer"]
-        eps = 1.0 - f_env * s
-        rows.append(dict(t=float(t), t_over_d=float(t) / d, s=float(s), s_err=s_err,
-                         eps=float(eps), eps_err=float(math.hypot(s * f_env_se, f_env * s_err))))
+        rows.append(dict(t=float(t), t_over_d=float(t) / d,
+                         s=float(props.volume / el.envelope_volume),
+                         s_err=float(props.volume_error) / el.envelope_volume))
     return rows
+
+
+def sweep_voidage(fractions, f_env, f_env_se=0.0):
+    """:func:`sweep_fractions`' rows with eps = 1 - f_env s and eps_err (from s_err and
+    f_env_se, added in quadrature) for a pack of envelope fraction ``f_env``."""
+    return [dict(r, eps=float(1.0 - f_env * r["s"]),
+                 eps_err=float(math.hypot(r["s"] * f_env_se, f_env * r["s_err"])))
+            for r in fractions]
