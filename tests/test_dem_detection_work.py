@@ -184,3 +184,62 @@ def test_pair_list_is_rebuilt_when_a_body_leaves_its_build_sphere():
     sim.set_positions(np.array([[0.0, 0.0, 0.0], [1.01, 0.0, 0.0]]))
     c = sim.detect_contacts()
     assert len(c["body_a"]) == 1 and c["depth"][0] == pytest.approx(-0.01, abs=1e-12)
+
+
+def _periodic_rain_hash(steps, skin, threads, monkeypatch):
+    # spheres drifting sideways through the periodic x and z faces (each wraps several times)
+    # and falling onto a floor: a kept list must refresh its image shifts, bit for bit
+    from test_dem_moving_walls import _floor
+    numba.set_num_threads(threads)
+    try:
+        sim = Simulation(64)
+        sim.set_gravity(0.0, -9.81, 0.0)
+        sim.set_domain([-2.0, -1.0, -2.0], [2.0, 6.0, 2.0])
+        sim.enable_periodicity(True, False, True)
+        _floor(sim, e=0.2, mu=0.5)
+        g = np.arange(4) - 1.5
+        pos = [(0.9 * x, 0.6 + 1.0 * y, 0.9 * z) for x in g for y in range(4) for z in g]
+        rng = np.random.default_rng(2)
+        vel = rng.normal(size=(len(pos), 3)) * 0.5 + [6.0, 0.0, -4.0]
+        _spheres(sim, pos, r=0.4, vel=vel)
+        builds = [0]
+        real = broadphase.pairs
+
+        def counted(*a):
+            builds[0] += 1
+            return real(*a)
+
+        monkeypatch.setattr(broadphase, "pairs", counted)
+        wraps = 0
+        for _ in range(steps):
+            if not skin:
+                sim._detector._pairs = None
+            before = sim.get_positions()[:, 0].copy()
+            sim.step(2e-3)
+            wraps += int(np.sum(np.abs(sim.get_positions()[:, 0] - before) > 2.0))
+        return sim.state_hash(), builds[0], wraps
+    finally:
+        numba.set_num_threads(CAP)
+
+
+def test_a_kept_pair_list_on_periodic_axes_changes_no_bit(monkeypatch):
+    steps = 150
+    ref, builds_ref, wraps = _periodic_rain_hash(steps, False, 1, monkeypatch)
+    kept, builds, _ = _periodic_rain_hash(steps, True, 1, monkeypatch)
+    assert builds_ref == steps and builds < steps // 2      # the list was kept most steps
+    assert wraps > 20                                       # bodies crossed the faces
+    assert kept == ref
+    if CAP >= 2:
+        assert _periodic_rain_hash(steps, True, 2, monkeypatch)[0] == ref
+
+
+def test_kept_image_shifts_are_the_broad_phases_own():
+    rng = np.random.default_rng(9)
+    box = np.array([3.5, 1.0, 3.5])
+    per = np.array([True, False, True])
+    pos = rng.uniform(-1.75, 1.75, size=(60, 3))
+    lo, cell, dims, bx = broadphase.grid_for(pos, 1.2, np.array([-1.75, 0.0, -1.75]),
+                                             np.array([1.75, 1.0, 1.75]), per, 256)
+    pa, pb, shift = broadphase.find_pairs(pos, np.full(60, 0.5), 0.1, lo, cell, dims, bx, per)
+    assert len(pa) > 50 and np.any(shift[:, 0] != 0.0)
+    assert broadphase.image_shifts(pa, pb, pos, bx, per).tobytes() == shift.tobytes()

@@ -6,11 +6,11 @@ import pytest
 from numba.core.registry import CPUDispatcher
 
 from peclet.dem import warm
-from peclet.dem import broadphase, narrowphase, rigid, solver
+from peclet.dem import broadphase, contacts, guards, narrowphase, rigid, solver
 
 
 def _dispatchers():
-    mods = (broadphase, narrowphase, rigid, solver)
+    mods = (broadphase, contacts, guards, narrowphase, rigid, solver)
     return {f"{m.__name__}.{k}": v for m in mods for k, v in vars(m).items()
             if isinstance(v, CPUDispatcher)}
 

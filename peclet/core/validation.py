@@ -83,16 +83,16 @@ def check_int(name, value, lo=-math.inf, hi=math.inf):
 
 def check_float(name, value, lo=-math.inf, hi=math.inf, lo_open=False, hi_open=False):
     """``value`` as a finite float in the interval; bools and strings are refused."""
+    if not isinstance(value, (bool, np.bool_, str)) and isinstance(value, numbers.Real):
+        v = float(value)
+        ok_lo = v > lo if lo_open else v >= lo
+        ok_hi = v < hi if hi_open else v <= hi
+        if math.isfinite(v) and ok_lo and ok_hi:
+            return v
+    # the message only when it is needed (a step checks its dt every time)
     rng = describe_range(lo, hi, lo_open, hi_open)
-    what = "a finite number" + ("" if rng == "finite" else f" {rng}")
-    if isinstance(value, (bool, np.bool_, str)) or not isinstance(value, numbers.Real):
-        raise PecletArgumentError(name, what, value)
-    v = float(value)
-    ok_lo = v > lo if lo_open else v >= lo
-    ok_hi = v < hi if hi_open else v <= hi
-    if not (math.isfinite(v) and ok_lo and ok_hi):
-        raise PecletArgumentError(name, what, value)
-    return v
+    raise PecletArgumentError(name, "a finite number" + ("" if rng == "finite" else f" {rng}"),
+                              value)
 
 
 def check_choice(name, value, choices):

@@ -74,6 +74,28 @@ def _axis_cells(c, dim, periodic, out):
     return m
 
 
+@njit(cache=True, inline="always")
+def _nearest(v, length, periodic):
+    """The offset ``v`` along an axis to the nearest periodic image (``v`` itself when the
+    axis is not periodic)."""
+    if periodic:
+        return v - length * math.floor(v / length + 0.5)
+    return v
+
+
+@njit(cache=True)
+def image_shifts(pa, pb, pos, box, periodic):
+    """(P, 3) the shift of each pair's b to its image nearest to a, computed as
+    :func:`find_pairs` computes it (the same bits): what a kept pair list needs when the
+    bodies have moved (and wrapped) since it was built."""
+    shift = np.empty((pa.shape[0], 3))
+    for u in range(pa.shape[0]):
+        for e in range(3):
+            v = pos[pb[u], e] - pos[pa[u], e]
+            shift[u, e] = _nearest(v, box[e], periodic[e]) - v
+    return shift
+
+
 @njit(cache=True)
 def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
                out_j, out_shift, write, base, ax, ay, az, d):
@@ -94,9 +116,7 @@ def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, c
                         continue
                     r2 = 0.0
                     for e in range(3):
-                        v = pos[j, e] - pos[i, e]
-                        if periodic[e]:
-                            v -= box[e] * math.floor(v / box[e] + 0.5)
+                        v = _nearest(pos[j, e] - pos[i, e], box[e], periodic[e])
                         d[e] = v
                         r2 += v * v
                     cut = radius[i] + radius[j] + margin

@@ -11,10 +11,12 @@ re-expressed in each contact's new tangent basis on lookup.
 """
 from __future__ import annotations
 
+import math
 import time
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from peclet.dem import broadphase, distgrid, narrowphase
 from peclet.dem.reuse import Reuse
@@ -113,21 +115,30 @@ class Detector:
         |x_i - x_j| >= G_i + G_j + margin, so now it is at least (G_i - d_i) + (G_j - d_j) +
         margin >= g_i + g_j + margin apart. The extra pairs it holds give the narrow phase
         no hit (their gap exceeds their margin), so the contacts are the same bits as with
-        a fresh list; only the work changes. Periodic domains always rebuild (a pair's
-        nearest image can change)."""
+        a fresh list; only the work changes. On periodic axes distances and displacements
+        are to the nearest image (a metric on the torus, so the argument holds), and a kept
+        pair's image shift is computed afresh from the current positions, by the broad
+        phase's own formula (:func:`~peclet.dem.broadphase.image_shifts`): a body that
+        wrapped keeps its pairs."""
         keep = self._pairs
         n = len(pos)
-        if (keep is not None and keep[0] == margin and len(keep[1]) == n
-                and not domain.periodic.any()):
-            x_ref, big = keep[1], keep[2]
-            moved = np.sqrt(((pos - x_ref) ** 2).sum(axis=1))
+        dlo, dhi = domain.grid_box()
+        box = np.where(domain.periodic, dhi - dlo, 1.0)      # grid_for's box
+        if keep is not None and keep[0] == margin and len(keep[1]) == n:
+            x_ref, big, found = keep[1], keep[2], keep[3]
+            d = pos - x_ref
+            if domain.periodic.any():
+                d = np.where(domain.periodic, d - box * np.floor(d / box + 0.5), d)
+            moved = np.sqrt((d ** 2).sum(axis=1))
             # the test keeps a relative 1e-9 in hand against round-off in the distances
             if bool(np.all(grown + moved <= big * (1.0 - 1e-9))):
-                return keep[3]
-        skin = SKIN_FRACTION * float(grown.min()) if n and not domain.periodic.any() else 0.0
+                if not domain.periodic.any():
+                    return found
+                return found[0], found[1], broadphase.image_shifts(found[0], found[1], pos,
+                                                                   box, domain.periodic)
+        skin = SKIN_FRACTION * float(grown.min()) if n else 0.0
         big = grown + skin
         cutoff = 2.0 * float(big.max()) + margin
-        dlo, dhi = domain.grid_box()
         lo, cell, dims, box = broadphase.grid_for(pos, cutoff, dlo, dhi, domain.periodic,
                                                   max(64, 4 * n))
         found = broadphase.pairs(pos, big, margin, lo, cell, dims, box, domain.periodic)
@@ -194,10 +205,18 @@ def body_reach(radii, vel, omega, dt):
 def lever_arms(c, pos):
     """(ra, rb) (n, 3): each contact point relative to body a's and to body b's centre (b's
     periodic image; zero for a wall)."""
-    isw = c.b < 0
-    bidx = np.where(isw, 0, c.b)
-    ra = np.ascontiguousarray(c.point - pos[c.a])
-    rb = np.ascontiguousarray(np.where(isw[:, None], 0.0, c.point - (pos[bidx] + c.shift)))
+    return _lever_arms(c.a, c.b, c.point, c.shift, pos)
+
+
+@njit(cache=True)
+def _lever_arms(a, b, point, shift, pos):
+    n = a.shape[0]
+    ra = np.empty((n, 3))
+    rb = np.empty((n, 3))
+    for i in range(n):
+        for e in range(3):
+            ra[i, e] = point[i, e] - pos[a[i], e]
+            rb[i, e] = 0.0 if b[i] < 0 else point[i, e] - (pos[b[i], e] + shift[i, e])
     return ra, rb
 
 
@@ -225,6 +244,34 @@ def overlap_pairs(lst):
     return {"body_a": uk[:, 0], "body_b": uk[:, 1], "depth": mx}
 
 
+@njit(cache=True)
+def _initial_impulses(old_keys, old_lam, keys, t1, t2, mu):
+    """:meth:`WarmStart.initial`. The sums and products are NumPy's (a row sum starts from
+    0.0 and adds left to right), so that the impulses keep the bits of the array form."""
+    nc = keys.shape[0]
+    lam = np.zeros((nc, 3))
+    nk = old_keys.shape[0]
+    if nk == 0:
+        return lam
+    for i in range(nc):
+        j = np.searchsorted(old_keys, keys[i])
+        if j >= nk or old_keys[j] != keys[i]:
+            continue
+        lam[i, 0] = old_lam[j, 0]
+        lam[i, 1] = ((0.0 + old_lam[j, 1] * t1[i, 0]) + old_lam[j, 2] * t1[i, 1]) \
+            + old_lam[j, 3] * t1[i, 2]
+        lam[i, 2] = ((0.0 + old_lam[j, 1] * t2[i, 0]) + old_lam[j, 2] * t2[i, 1]) \
+            + old_lam[j, 3] * t2[i, 2]
+        # the Coulomb cone (a cached impulse must satisfy it at this step's friction too)
+        tm = math.sqrt(lam[i, 1] * lam[i, 1] + lam[i, 2] * lam[i, 2])
+        lim = mu[i] * lam[i, 0]
+        if tm > lim:
+            sc = lim / tm if tm > 0.0 else 0.0
+            lam[i, 1] *= sc
+            lam[i, 2] *= sc
+    return lam
+
+
 class WarmStart:
     """Last step's impulses by contact key: ``keys`` (K,) sorted int64, ``lam`` (K, 4) as
     (normal impulse, world-frame tangential impulse (3,))."""
@@ -242,20 +289,11 @@ class WarmStart:
         """One int64 key per contact: the pair (a, b) and the feature."""
         return ((c.a * _WALL_BASE + (c.b + n_walls + 1)) << _FEATURE_BITS) + c.feat
 
-    def lookup(self, keys, t1, t2):
+    def initial(self, keys, t1, t2, mu):
         """Initial impulses (nc, 3) (normal, along t1, along t2): the cached ones where a key
-        matches, zero elsewhere."""
-        nc = len(keys)
-        lam = np.zeros((nc, 3))
-        if nc and len(self.keys):
-            j = np.searchsorted(self.keys, keys)
-            j = np.minimum(j, len(self.keys) - 1)
-            hit = self.keys[j] == keys
-            old = self.lam[j[hit]]
-            lam[hit, 0] = old[:, 0]
-            lam[hit, 1] = (old[:, 1:] * t1[hit]).sum(axis=1)
-            lam[hit, 2] = (old[:, 1:] * t2[hit]).sum(axis=1)
-        return lam
+        matches (the world-frame tangential impulse projected on this step's tangents), zero
+        elsewhere, each scaled into its Coulomb cone ``|lam_t| <= mu lam_n`` (``mu`` (nc,))."""
+        return _initial_impulses(self.keys, self.lam, keys, t1, t2, mu)
 
     def store(self, keys, lam, t1, t2):
         """Cache this step's impulses ``lam`` (nc, 3) in the tangent bases (t1, t2)."""

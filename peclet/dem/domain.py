@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from peclet.core.validation import PecletArgumentError, check_array, check_bool
 
@@ -46,14 +47,23 @@ class Domain:
     def wrap(self, pos):
         """Move ``pos`` (N, 3) into [lo, hi) along every periodic axis, in place; returns it."""
         if self.periodic.any():
-            for a in np.flatnonzero(self.periodic):
-                L = self.hi[a] - self.lo[a]
-                pos[:, a] = self.lo[a] + np.mod(pos[:, a] - self.lo[a], L)
-                # np.mod may round up to exactly L
-                pos[pos[:, a] >= self.hi[a], a] = self.lo[a]
+            wrap_into(pos, self.lo, self.hi, self.periodic)
         return pos
 
     def grid_box(self):
         """(lo, hi) for the broad phase's grid: the domain, else the unit box."""
         return (self.lo if self.lo is not None else np.zeros(3),
                 self.hi if self.hi is not None else np.ones(3))
+
+
+@njit(cache=True)
+def wrap_into(pos, lo, hi, periodic):
+    """:meth:`Domain.wrap` on (N, 3) ``pos`` in place: lo + (p - lo) mod L (Python's and
+    NumPy's float modulo: the result takes L's sign), and lo where that rounds up to hi."""
+    for a in range(3):
+        if not periodic[a]:
+            continue
+        L = hi[a] - lo[a]
+        for i in range(pos.shape[0]):
+            p = lo[a] + (pos[i, a] - lo[a]) % L
+            pos[i, a] = lo[a] if p >= hi[a] else p

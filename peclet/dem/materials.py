@@ -147,15 +147,3 @@ def per_contact(body_b, mat, geo):
         e_c = np.full(nc, mat.e_n)
         mu_c = np.full(nc, mat.mu)
     return e_c, np.full(nc, mat.e_t), mu_c
-
-
-def clamp_to_cone(lam, mu_c):
-    """Scale each row's tangential impulse (``lam[:, 1:3]``) into the Coulomb cone
-    ``|lam_t| <= mu lam_n``, in place (warm-start impulses must satisfy it too)."""
-    tm = np.sqrt(lam[:, 1] ** 2 + lam[:, 2] ** 2)
-    lim = mu_c * lam[:, 0]
-    over = tm > lim
-    if np.any(over):
-        sc = np.where(tm[over] > 0, lim[over] / np.where(tm[over] > 0, tm[over], 1.0), 0.0)
-        lam[over, 1] *= sc
-        lam[over, 2] *= sc
