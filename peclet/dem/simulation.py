@@ -35,7 +35,7 @@ from peclet.dem.contacts import (Detector, WarmStart, body_reach, lever_arms, li
                                  overlap_pairs)
 from peclet.dem.domain import Domain
 from peclet.dem.materials import (MAX_MATERIAL_ID, SIMULATION_DEFAULT, MaterialTable,
-                                  clamp_to_cone, material, per_contact)
+                                  material, per_contact)
 from peclet.dem.wallmotion import WallMotion
 from peclet.dem.hertz import HertzState
 from peclet.dem.sleep import Sleep
@@ -512,19 +512,20 @@ class Simulation:
         if self._materials.active():
             self._materials.check_declared(b.n, self._material)
 
-    def _margins(self, vel, omega, dt, pos=None):
+    def _margins(self, vel, omega, dt, pos=None, radii=None, moving=None):
         """(base, reach (N,) or None, wall_reach (N, W) or None) for :meth:`_detect`: each
         pair's margin is the base plus what its two members can close in ``dt``
         (:func:`peclet.dem.broadphase.task_list`); a moving wall's surface speed near a body
-        enters that body's wall pairs like a body's own speed."""
+        enters that body's wall pairs like a body's own speed. ``radii`` (:meth:`_radii`) and
+        ``moving`` (whether a wall moves) when the caller has them already."""
         base = self._margin_fraction * float(np.min([s.radius for s in
                                                      self._shape_table()[0]]))
         if dt is None:
             return base, None, None
-        radii = self._radii()
+        radii = self._radii() if radii is None else radii
         reach = body_reach(radii, vel, omega, dt)
         wall_reach = None
-        if self._wallmo.moving():
+        if self._wallmo.moving() if moving is None else moving:
             p = self._bodies.pos if pos is None else pos
             wall_reach = self._wallmo.surface_speeds(p, radii) * dt
         return base, reach, wall_reach
@@ -596,6 +597,11 @@ class Simulation:
             return
         t0 = time.perf_counter()
         inv_mass, inv_inertia, x, q, v, w = self._working_state()
+        # what the step asks several times, once: the radii and speed limit of the guards,
+        # whether a wall moves
+        radii = self._radii()
+        limits = (radii, speed_bound(self._domain, self._bodies.pos, radii))
+        moving = self._wallmo.moving()
         frozen = self._sleep.frozen(self._bodies.n, self._loaded())
         if frozen is not None:
             # a sleeper is fixed for this step: no gravity, no load, not moved by a solve
@@ -609,23 +615,23 @@ class Simulation:
             if self._ext_torque is not None:
                 wi = solver.world_inv_inertias(q, inv_inertia)
                 w += dt * np.einsum("nij,nj->ni", wi, self._ext_torque)
-        self._guard(x, q, v, w)                     # before any kernel sees a bad value
+        self._guard(x, q, v, w, limits)             # before any kernel sees a bad value
         wall_moving = None if frozen is None else self._wallmo.moving_walls()
-        c = self._detect(x, quats_to_matrices(q), *self._margins(v, w, dt, x), frozen,
+        c = self._detect(x, quats_to_matrices(q), *self._margins(v, w, dt, x, radii, moving),
+                         frozen,
                          None if frozen is None else ~wall_moving)
         t1 = time.perf_counter()
         keys = WarmStart.keys_of(c, len(self._walls))
         t1v, t2v = solver.tangent_basis(c.normal)
-        lam = self._warm.lookup(keys, t1v, t2v)
         if self._materials.active():
             e_c, beta_c, mu_c = self._materials.per_contact(c.a, c.b, self._material,
                                                             self._geometry())
         else:
             e_c, beta_c, mu_c = per_contact(c.b, self._material, self._geometry())
-        clamp_to_cone(lam, mu_c)
+        lam = self._warm.initial(keys, t1v, t2v, mu_c)
         ra, rb = lever_arms(c, x)
         vw = np.zeros((len(c.a), 3))
-        if self._wallmo.moving():
+        if moving:
             isw = c.b < 0
             vw[isw] = self._wallmo.surface_velocity(-1 - c.b[isw], c.point[isw])
         con = solver.Constraints(c.a, c.b, c.normal, t1v, t2v, ra, rb, c.gap, e_c, beta_c, mu_c,
@@ -634,7 +640,7 @@ class Simulation:
         rest = 2.0 * dt * float(np.sqrt((self._gravity ** 2).sum()))
         vn = solver.solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest, self._slop(),
                                      self._vel_iters)
-        self._guard(x, q, v, w)
+        self._guard(x, q, v, w, limits)
         x += v * dt
         advance_all(q, w, inv_inertia, dt)
         solver.project_positions(con, c.gap + dt * vn, inv_mass, invI, self._slop(),
@@ -642,15 +648,15 @@ class Simulation:
         self._domain.wrap(x)
         if frozen is not None:
             q[frozen] = q_frozen                # a sleeper's pose keeps its bits
-            self._sleep.update(c.a, c.b, body_reach(self._radii(), v, w, 1.0), wall_moving,
-                               v, w)
-        self._guard(x, q, v, w)
+            self._sleep.update(c.a, c.b, body_reach(radii, v, w, 1.0), wall_moving, v, w)
+        self._guard(x, q, v, w, limits)
         t2 = time.perf_counter()
         # commit
         b = self._bodies
         b.pos, b.quat, b.vel, b.omega = x, q, v, w
         self._warm.store(keys, lam, t1v, t2v)
-        self._wallmo.advance(dt)
+        if moving:
+            self._wallmo.advance(dt)
         self._num_contacts = len(c.a)
         self._step_count += 1
         self._time += dt
@@ -731,8 +737,10 @@ class Simulation:
         when ``dt`` exceeds ``hertz.RAYLEIGH_FRACTION`` of the smallest Rayleigh time, for a
         material id without moduli or ``e_n`` below ``hertz.E_MIN``;
         :class:`peclet.dem.hertz.HertzPatchError` (a PecletArgumentError naming both bodies)
-        for a touching patch the law cannot hold (flat, line, edge or corner contact, too deep
-        or too many patches); :class:`StepError` when the state goes non-finite or runs away
+        for a distributed contact (flat, line, edge or corner contacts, which run on the
+        distributed law of :mod:`peclet.dem.hertz`) overlapping deeper than
+        ``hertz.DIST_DEEP_LIMIT`` x the smaller bounding radius; :class:`StepError` when the
+        state goes non-finite or runs away
         (in both cases the state of that substep's start is kept). The impulse :meth:`step`
         is unaffected; the two engines keep separate contact caches. Sleeping does not apply.
         """
@@ -758,10 +766,11 @@ class Simulation:
         from peclet.dem import hertz
         return hertz.last_listing(self._hertz)
 
-    def _guard(self, x, q, v, w):
-        radii = self._radii()
-        check_state(x, q, v, w, radii, speed_bound(self._domain, self._bodies.pos, radii),
-                    self._step_count + 1)
+    def _guard(self, x, q, v, w, limits=None):
+        # limits: (radii, speed bound) when the caller has them (they do not change in a step)
+        radii, bound = limits if limits is not None else (
+            self._radii(), speed_bound(self._domain, self._bodies.pos, self._radii()))
+        check_state(x, q, v, w, radii, bound, self._step_count + 1)
 
     # ------------------------------------------------------------------ persistence
     def save(self, path):
