@@ -93,17 +93,62 @@ each stored history goes to the nearest new patch of its pair within twice the p
 plus the skin, so the Mindlin history follows the patch (save and load keep it: it needs only
 the keys). Assumptions: each touching patch is smooth and convex (K_a + K_b positive
 definite), delta << R' and a non-conforming, isolated patch (contact radius << R', patches far
-apart compared with their size). Refused with :class:`HertzPatchError` (a
-PecletArgumentError; the state of the failing substep's start kept) on a touching patch: flat,
-conforming or line contacts (a box face, a cylinder lying on its side), edges and corners (a
-probe inside the other body where no convex patch solves), delta > DELTA_LIMIT x R', R''/R' >
-RATIO_LIMIT, more than MAX_PATCHES patches per pair. Limits: the refusal comes at the first
-substep that starts touching; a patch is only found if some probe lies within the skin (the
-rebuild keeps half the skin for the probes' spacing), and rotation counts in the rebuild test;
-the Newton start depends on when the list was rebuilt, so unlike spheres a composed run's bits
-depend on the call pattern (not on the thread count); the Mindlin spring uses the circular
-``8 G* sqrt(R* delta)`` also for an elliptical patch; Rayleigh's dt check uses the bounding
-radius with the body's mass spread over its bounding sphere.
+apart compared with their size). Limits: a patch is only found if some probe lies within the
+skin (the rebuild keeps half the skin for the probes' spacing), and rotation counts in the
+rebuild test; the Newton start depends on when the list was rebuilt, so unlike spheres a
+composed run's bits depend on the call pattern (not on the thread count); the Mindlin spring
+uses the circular ``8 G* sqrt(R* delta)`` also for an elliptical patch; Rayleigh's dt check
+uses the bounding radius with the body's mass spread over its bounding sphere.
+
+Distributed contacts (flat, line, edge, corner). Where the patch law fails on a touching
+patch (no positive relative curvature: a face on a face or a wall, a cylinder on its side,
+an edge or a corner; R''/R' > RATIO_LIMIT; delta > DELTA_LIMIT x R'; a probe inside the other
+body where no patch solves; more than MAX_PATCHES patches), or a pair with such a failed seed
+has no touching Hertz patch, the whole pair gets ONE distributed contact instead
+(:func:`distributed_geometry`, every substep). Pairs that the patch law holds are untouched
+(bit for bit). The law::
+
+    normal n: the other body's outward unit normal at the deepest probe (of a in b or b in a)
+    region:   the overlap of the two bodies seen along n, sampled on a DIST_GRID^2 grid in the
+              plane normal to n, zoomed onto the region (a coarse look, then boxes around the
+              inside nodes along their principal axes; a region thinner than the spacing, a
+              line, is found from a quadratic model of m and a row of nodes put through it),
+              each inside node's cell cut at the region's boundary by bisection; inside means
+              m = min_s max(phi_a, phi_b) < 0 along the node's normal line (1-Lipschitz, so a
+              node with m > half the cell diagonal rules its cell out)
+    overlap:  d(x) = the chord of the intersection along n at x (Newton to both surfaces);
+              V = sum d w, A = sum w over the cells (w their areas), J their second moments
+    law:      p(x) = k d(x),  k = pi a E* / (K(e) A),  F = k V,  S = k A
+              a, b the ellipse of area A with J's principal ratio (a / b = sqrt(J1 / J2)),
+              e^2 = 1 - b^2 / a^2, K the complete elliptic integral of the first kind
+
+k makes the region's rigid flat punch exact for an ellipse: F = pi a E* delta / K(e) (the flat
+elliptical punch; a circle, K = pi / 2, gives F = 2 a E* delta, Johnson 1985 §3.8). Accuracy
+against closed forms (E* the pair's, the bodies taken as half-spaces): a square punch 0.6 %
+softer than Gazetas' rigid-footing fit (the equal-area disc has the least stiffness of all
+plane shapes of its area, Polya-Szego); a cylinder of length L on its side: F = k V gives
+F ~ 1.18 E* L delta / ln(2 L / b_g) (b_g = sqrt(2 R delta)), 4-6 % softer than Lundberg's
+finite line contact delta = 2 F / (pi L E*) (1.8864 + ln(L / 2 b)) (chosen over Johnson §4.3's
+two-dimensional approach, which needs a datum, and over the "simple" F = pi/4 E* L delta of
+two-dimensional DEM, ~3.5x stiffer than either at these loads); a cone / corner 4.7 % stiffer
+than Sneddon's F = (2 / pi) E* cot(theta) delta^2; a sphere 6 % stiffer than Hertz (such
+patches take the exact Hertz path anyway). It acts at the pressure centroid of the region,
+along n (exact torque for one plane region). Through the same force kernel: delta_h = 3 F /
+(2 S) and R*_h with 4/3 E* sqrt(R*_h) delta_h^1.5 = F, so that the kernel's S_n = S, the
+Mindlin spring is S_t = 4 (G* / E*) S (Mindlin's ratio), truncated at Coulomb as before, and
+the Tsuji dashpot gamma sqrt(S m*) uses gamma from :func:`damping_gamma_linear` (the same
+calibration for the linear law x'' = -max(0, x + gamma x'): exact e for a flat punch; for a
+line contact F is linear up to the log; for a corner, F ~ delta^2, the rebound differs from e).
+Key: the pair and DIST_FEATURE (one per pair, stable across rebuilds; the history carries
+over). ``hertz_contacts`` lists the contact with depth = the largest chord. Limits: one
+region and one normal per pair (two separate regions of a pair are lumped into one ellipse,
+their couple about n lost); the normal is a probe's, so it can jump between neighbouring
+probes on a curved surface; a region found at no grid node within DIST_ZOOMS zooms exerts no
+force until it grows; a switch between the patch law and the distributed law is a jump of a
+few % in force and restarts the Mindlin history. Refused with :class:`HertzPatchError` (a
+PecletArgumentError naming both bodies; the state of the failing substep's start kept): a
+distributed contact whose largest chord exceeds DIST_DEEP_LIMIT x the smaller bounding radius.
+Rolling resistance is not implemented.
 
 Determinism: the force kernel writes only its own contact's slots; forces and torques are
 summed into bodies serially in contact order; the history is sorted by key. Bitwise identical
@@ -1073,6 +1118,587 @@ def seed_patches(qa, qb, qshift, det_off, det_pt, det_gap, margin, pos, rot, sha
 
 
 # --------------------------------------------------------------------------------------------
+# composed particles: distributed contacts (flat, line, edge and corner contacts)
+# --------------------------------------------------------------------------------------------
+
+#: Nodes per axis of a distributed contact's sampling grid (the grid is zoomed onto the
+#: overlap region, so this is the resolution across the region in each direction).
+DIST_GRID = np.int64(24)
+#: At most this many zooms of the sampling grid onto the overlap region.
+DIST_ZOOMS = np.int64(8)
+#: Bisection steps that place the region's boundary between an inside and an outside node.
+DIST_BISECT = np.int64(8)
+#: A distributed contact is refused when its largest overlap exceeds this fraction of the
+#: smaller bounding radius of its bodies (the law assumes a shallow overlap).
+DIST_DEEP_LIMIT = 0.1
+#: The feature id of a pair's distributed contact (one per pair; its history key).
+DIST_FEATURE = (1 << 26) - 1
+#: Status of a distributed contact whose overlap is too deep (refused).
+PATCH_DIST_DEEP = 7
+#: Candidate mode of a pair that had too many patches at its rebuild: always distributed.
+MODE_DISTRIBUTED = 3
+
+_PATCH_REASONS[PATCH_DIST_DEEP] = (
+    f"the distributed contact's overlap exceeds {DIST_DEEP_LIMIT} x the smaller bounding "
+    "radius (far too soft, or dt far too large)")
+
+
+@njit(cache=True)
+def _midway(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr, px, py,
+            pz, nx, ny, nz, s0, scale, st):
+    """Along the line p + s n (n from b to a): (m, s) with m = max(phi_a, phi_b) at the s where
+    the two are equal (Newton from s0): m < 0 means the line passes through both bodies, and
+    m bounds the distance from p + s n to their intersection (1-Lipschitz fields)."""
+    s = s0
+    tol = PATCH_TOL * scale
+    cap = 0.25 * scale
+    m = np.inf
+    for _ in range(12):
+        x = px + s * nx
+        y = py + s * ny
+        z = pz + s * nz
+        pa, gax, gay, gaz = _field(ka, rada, xa, Ra, oa0, oa1, 1.0, ops, lk, lr, x, y, z, st)
+        pb, gbx, gby, gbz = _field(kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr, x, y, z, st)
+        m = max(pa, pb)
+        fp = (gax - gbx) * nx + (gay - gby) * ny + (gaz - gbz) * nz
+        if not (fp < -0.25):
+            fp = -1.0
+        step = -(pa - pb) / fp
+        if step > cap:
+            step = cap
+        elif step < -cap:
+            step = -cap
+        if abs(step) <= tol:
+            break
+        s += step
+    return m, s
+
+
+@njit(cache=True)
+def _exit(kind, rad, xt, Rt, o0, o1, sgn, ops, lk, lr, px, py, pz, nx, ny, nz, s0, direction,
+          scale, st):
+    """From p + s0 n inside the side, the s where its surface is crossed moving along
+    ``direction`` * n (Newton on phi along the line, steps at least the sphere-tracing bound)."""
+    s = s0
+    tol = PATCH_TOL * scale
+    for _ in range(30):
+        ph, gx, gy, gz = _field(kind, rad, xt, Rt, o0, o1, sgn, ops, lk, lr, px + s * nx,
+                                py + s * ny, pz + s * nz, st)
+        d = direction * (gx * nx + gy * ny + gz * nz)       # d phi / d(distance moved)
+        step = -ph / d if d > 0.2 else -ph      # Newton; at grazing incidence a safe |phi|
+        if abs(step) <= tol:
+            break
+        s += direction * step
+    return s
+
+
+@njit(cache=True)
+def _agm_ellipk(m):
+    """Complete elliptic integral of the first kind K(m), m = e^2 in [0, 1)."""
+    a = 1.0
+    b = math.sqrt(1.0 - m)
+    for _ in range(40):
+        if abs(a - b) <= 1e-15 * a:
+            break
+        a, b = 0.5 * (a + b), math.sqrt(a * b)
+    return 0.5 * math.pi / a
+
+
+@njit(cache=True)
+def _grid_eval(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr, c,
+               u1, u2, w1, w2, n, N, scale, st, gm, gs, gx):
+    """m and s of :func:`_midway` at the N x N cell centres of the box c +- w1 u1 +- w2 u2;
+    node positions into gx (N, N, 3)."""
+    for i in range(N):
+        a1 = ((2.0 * i + 1.0) / N - 1.0) * w1
+        for j in range(N):
+            a2 = ((2.0 * j + 1.0) / N - 1.0) * w2
+            for e in range(3):
+                gx[i, j, e] = c[e] + a1 * u1[e] + a2 * u2[e]
+            m, s = _midway(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops,
+                           lk, lr, gx[i, j, 0], gx[i, j, 1], gx[i, j, 2], n[0], n[1], n[2],
+                           0.0, scale, st)
+            gm[i, j] = m
+            gs[i, j] = s
+
+
+@njit(cache=True)
+def _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr,
+               pa0, pa1, pb0, pb1, probes, N, zooms, nbis, estar, out):
+    """The distributed contact of one pair (module docstring, "Distributed"): writes ``out``
+    = (point (3), normal from b to a (3), largest overlap, elastic force, stiffness S = k A,
+    area A, overlap volume V, equivalent ellipse semi-axes a, b) and returns PATCH_OK (force 0
+    when nothing overlaps) or PATCH_DIST_DEEP. Probes [pa0, pa1) are a's (home frame),
+    [pb0, pb1) b's; they only fix the normal (the deepest one's, the other body's outward
+    normal there)."""
+    st = np.empty((MAX_STACK, STACK_COLS))
+    for e in range(out.shape[0]):
+        out[e] = 0.0
+    scale = min(rada, radb)
+    # ---- normal: at the deepest probe (of a in b, or of b in a)
+    best = np.inf
+    n = np.zeros(3)
+    y0 = np.zeros(3)
+    for side in range(2):
+        p0, p1 = (pa0, pa1) if side == 0 else (pb0, pb1)
+        xo, Ro = (xa, Ra) if side == 0 else (xb, Rb)
+        for p in range(p0, p1):
+            q = probes[p]
+            px = xo[0] + Ro[0, 0] * q[0] + Ro[0, 1] * q[1] + Ro[0, 2] * q[2]
+            py = xo[1] + Ro[1, 0] * q[0] + Ro[1, 1] * q[1] + Ro[1, 2] * q[2]
+            pz = xo[2] + Ro[2, 0] * q[0] + Ro[2, 1] * q[1] + Ro[2, 2] * q[2]
+            if side == 0:
+                if radb < np.inf and ((px - xb[0]) ** 2 + (py - xb[1]) ** 2
+                                      + (pz - xb[2]) ** 2) > (radb + scale) ** 2:
+                    continue
+                ph, gx, gy, gz = _field(kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr, px, py,
+                                        pz, st)
+                sg = 1.0
+            else:
+                if ((px - xa[0]) ** 2 + (py - xa[1]) ** 2 + (pz - xa[2]) ** 2) \
+                        > (rada + scale) ** 2:
+                    continue
+                ph, gx, gy, gz = _field(ka, rada, xa, Ra, oa0, oa1, 1.0, ops, lk, lr, px, py,
+                                        pz, st)
+                sg = -1.0
+            gn = math.sqrt(gx * gx + gy * gy + gz * gz)
+            if not (gn > 0.0):
+                continue
+            d = ph / gn
+            if d < best:
+                best = d
+                n[0], n[1], n[2] = sg * gx / gn, sg * gy / gn, sg * gz / gn
+                y0[0], y0[1], y0[2] = px, py, pz
+    if best == np.inf:
+        return PATCH_OK
+    out[3], out[4], out[5] = n[0], n[1], n[2]
+    # ---- grid box: the smaller side's bounding disc, in the plane through y0
+    xs = xa if rada <= radb else xb
+    c = np.empty(3)
+    dn = (xs[0] - y0[0]) * n[0] + (xs[1] - y0[1]) * n[1] + (xs[2] - y0[2]) * n[2]
+    for e in range(3):
+        c[e] = xs[e] - dn * n[e]
+    t1x, t1y, t1z, t2x, t2y, t2z = _tangents(n[0], n[1], n[2])
+    u1 = np.array([t1x, t1y, t1z])
+    u2 = np.array([t2x, t2y, t2z])
+    w1 = scale
+    w2 = scale
+    gm = np.empty((N, N))
+    gs = np.empty((N, N))
+    gx_ = np.empty((N, N, 3))
+    ok = False
+    NF = N
+    for it in range(zooms):
+        # a coarse first look (its rigorous bound settles most pairs that do not overlap)
+        N = min(np.int64(8), NF) if it == 0 else NF
+        _grid_eval(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr, c,
+                   u1, u2, w1, w2, n, N, scale, st, gm, gs, gx_)
+        h1 = 2.0 * w1 / N
+        h2 = 2.0 * w2 / N
+        hd = 0.5 * math.sqrt(h1 * h1 + h2 * h2)
+        # inside nodes: their in-plane coordinates, moments
+        cnt = 0
+        s1 = 0.0
+        s2 = 0.0
+        border = False
+        border1 = False
+        border2 = False
+        imin = 0
+        jmin = 0
+        for i in range(N):
+            for j in range(N):
+                if gm[i, j] < gm[imin, jmin]:
+                    imin, jmin = i, j
+                if gm[i, j] < 0.0:
+                    cnt += 1
+                    s1 += ((2.0 * i + 1.0) / N - 1.0) * w1
+                    s2 += ((2.0 * j + 1.0) / N - 1.0) * w2
+                    if i == 0 or i == N - 1:
+                        border1 = True
+                    if j == 0 or j == N - 1:
+                        border2 = True
+                    border = border1 or border2
+        if cnt == 0:
+            if gm[imin, jmin] > hd:
+                return PATCH_OK                    # nothing within reach: no overlap
+            # quadratic model of m on the 3 x 3 nodes around the smallest: jump to its minimum
+            i0 = min(max(imin, 1), N - 2)
+            j0 = min(max(jmin, 1), N - 2)
+            f0 = gm[i0, j0]
+            g1 = 0.5 * (gm[i0 + 1, j0] - gm[i0 - 1, j0])
+            g2 = 0.5 * (gm[i0, j0 + 1] - gm[i0, j0 - 1])
+            h11 = gm[i0 + 1, j0] - 2.0 * f0 + gm[i0 - 1, j0]
+            h22 = gm[i0, j0 + 1] - 2.0 * f0 + gm[i0, j0 - 1]
+            h12 = 0.25 * (gm[i0 + 1, j0 + 1] - gm[i0 + 1, j0 - 1] - gm[i0 - 1, j0 + 1]
+                          + gm[i0 - 1, j0 - 1])
+            # eigen-directions of the 2 x 2 model Hessian (in grid units)
+            half = 0.5 * (h11 + h22)
+            rad_ = math.sqrt(0.25 * (h11 - h22) ** 2 + h12 * h12)
+            lam1 = half + rad_
+            lam2 = half - rad_
+            if abs(h12) > 1e-300:
+                e1x, e1y = lam1 - h22, h12
+            elif h11 >= h22:
+                e1x, e1y = 1.0, 0.0
+            else:
+                e1x, e1y = 0.0, 1.0
+            en = math.sqrt(e1x * e1x + e1y * e1y)
+            e1x /= en
+            e1y /= en
+            e2x, e2y = -e1y, e1x
+            d1 = 0.0
+            d2 = 0.0
+            ga = g1 * e1x + g2 * e1y
+            gb = g1 * e2x + g2 * e2y
+            if lam1 > 0.0:
+                d1 = min(max(-ga / lam1, -1.5), 1.5)
+            if lam2 > 0.0:
+                d2 = min(max(-gb / lam2, -1.5), 1.5)
+            di = d1 * e1x + d2 * e2x
+            dj = d1 * e1y + d2 * e2y
+            a1 = ((2.0 * i0 + 1.0) / N - 1.0) * w1 + di * h1
+            a2 = ((2.0 * j0 + 1.0) / N - 1.0) * w2 + dj * h2
+            if lam1 > 0.0 and lam2 <= 0.05 * lam1:
+                # line-like (flat along e2): the next grid's axes along and across the line,
+                # a row of nodes through the model's minimum, the extent along it kept
+                v1 = np.empty(3)
+                v2 = np.empty(3)
+                for e in range(3):
+                    v1[e] = e2x * h1 * u1[e] + e2y * h2 * u2[e]     # along
+                    v2[e] = e1x * h1 * u1[e] + e1y * h2 * u2[e]     # across
+                l1 = math.sqrt(v1[0] ** 2 + v1[1] ** 2 + v1[2] ** 2)
+                for e in range(3):
+                    v1[e] /= l1
+                dd = v1[0] * v2[0] + v1[1] * v2[1] + v1[2] * v2[2]
+                for e in range(3):
+                    v2[e] -= dd * v1[e]
+                l2 = math.sqrt(v2[0] ** 2 + v2[1] ** 2 + v2[2] ** 2)
+                for e in range(3):
+                    v2[e] /= l2
+                off = 0.0
+                for e in range(3):
+                    off += (a1 * u1[e] + a2 * u2[e]) * v2[e]
+                wmax = max(w1, w2)
+                for e in range(3):
+                    c[e] += (off + wmax / NF) * v2[e]
+                    u1[e] = v1[e]
+                    u2[e] = v2[e]
+                w1 = wmax
+                w2 = wmax
+                continue
+            # shift the next (full) grid so that a node lies on the model's minimum: a small
+            # region between the nodes is then seen
+            k1 = min(max(int(round((a1 / w1 + 1.0) * 0.5 * NF - 0.5)), 0), NF - 1)
+            k2 = min(max(int(round((a2 / w2 + 1.0) * 0.5 * NF - 0.5)), 0), NF - 1)
+            b1 = a1 - ((2.0 * k1 + 1.0) / NF - 1.0) * w1
+            b2 = a2 - ((2.0 * k2 + 1.0) / NF - 1.0) * w2
+            for e in range(3):
+                c[e] += b1 * u1[e] + b2 * u2[e]
+            continue
+        # inside nodes exist: principal axes of their positions, the box around them
+        m1 = s1 / cnt
+        m2 = s2 / cnt
+        j11 = 0.0
+        j12 = 0.0
+        j22 = 0.0
+        for i in range(N):
+            for j in range(N):
+                if gm[i, j] < 0.0:
+                    q1 = ((2.0 * i + 1.0) / N - 1.0) * w1 - m1
+                    q2 = ((2.0 * j + 1.0) / N - 1.0) * w2 - m2
+                    j11 += q1 * q1
+                    j12 += q1 * q2
+                    j22 += q2 * q2
+        j11 += cnt * h1 * h1 / 12.0
+        j22 += cnt * h2 * h2 / 12.0
+        half = 0.5 * (j11 + j22)
+        rad_ = math.sqrt(0.25 * (j11 - j22) ** 2 + j12 * j12)
+        lam1 = half + rad_
+        lam2 = half - rad_
+        if lam1 > 1.5 * lam2 and abs(j12) > 1e-12 * lam1:
+            e1x, e1y = lam1 - j22, j12
+            en = math.sqrt(e1x * e1x + e1y * e1y)
+            e1x /= en
+            e1y /= en
+        else:
+            e1x, e1y = 1.0, 0.0                    # keep the current axes
+        e2x, e2y = -e1y, e1x
+        lo1 = np.inf
+        hi1 = -np.inf
+        lo2 = np.inf
+        hi2 = -np.inf
+        for i in range(N):
+            for j in range(N):
+                if gm[i, j] < 0.0:
+                    q1 = ((2.0 * i + 1.0) / N - 1.0) * w1
+                    q2 = ((2.0 * j + 1.0) / N - 1.0) * w2
+                    r1 = q1 * e1x + q2 * e1y
+                    r2 = q1 * e2x + q2 * e2y
+                    lo1 = min(lo1, r1)
+                    hi1 = max(hi1, r1)
+                    lo2 = min(lo2, r2)
+                    hi2 = max(hi2, r2)
+        mg1 = abs(e1x) * h1 + abs(e1y) * h2
+        mg2 = abs(e2x) * h1 + abs(e2y) * h2
+        nw1 = 0.5 * (hi1 - lo1) + mg1
+        nw2 = 0.5 * (hi2 - lo2) + mg2
+        same_axes = e1x == 1.0 and e1y == 0.0
+        if same_axes:
+            # the overlap reaches the grid's edge: widen that way
+            if border1:
+                nw1 = max(nw1, 1.5 * w1)
+            if border2:
+                nw2 = max(nw2, 1.5 * w2)
+        if not border and same_axes and nw1 >= 0.7 * w1 and nw2 >= 0.7 * w2 and N == NF:
+            ok = True
+            break
+        if it == zooms - 1:
+            ok = not border
+            break
+        if N != NF and not border and same_axes and nw1 >= 0.7 * w1 and nw2 >= 0.7 * w2:
+            continue                               # the same box, now at full resolution
+        cc1 = 0.5 * (lo1 + hi1)
+        cc2 = 0.5 * (lo2 + hi2)
+        v1 = np.empty(3)
+        v2 = np.empty(3)
+        for e in range(3):
+            c[e] = c[e] + (cc1 * e1x + cc2 * e2x) * u1[e] + (cc1 * e1y + cc2 * e2y) * u2[e]
+            v1[e] = e1x * u1[e] + e1y * u2[e]
+            v2[e] = e2x * u1[e] + e2y * u2[e]
+        for e in range(3):
+            u1[e] = v1[e]
+            u2[e] = v2[e]
+        w1 = nw1
+        w2 = nw2
+    if not ok:
+        # the zooms ran out with the overlap on the grid's border or never resolved: sample
+        # what the last grid holds (a coarse estimate, documented)
+        pass
+    # ---- integrate over the last grid: inside cells, their extents to the boundary
+    h1 = 2.0 * w1 / N
+    h2 = 2.0 * w2 / N
+    A = 0.0
+    V = 0.0
+    cA1 = 0.0
+    cA2 = 0.0
+    cV1 = 0.0
+    cV2 = 0.0
+    cVs = 0.0
+    J11 = 0.0
+    J12 = 0.0
+    J22 = 0.0
+    dmax = 0.0
+    ext = np.empty(4)
+    for i in range(N):
+        for j in range(N):
+            if not (gm[i, j] < 0.0):
+                continue
+            # the chord of the intersection along n through the node
+            px, py, pz = gx_[i, j, 0], gx_[i, j, 1], gx_[i, j, 2]
+            s_a = _exit(ka, rada, xa, Ra, oa0, oa1, 1.0, ops, lk, lr, px, py, pz, n[0], n[1],
+                        n[2], gs[i, j], -1.0, scale, st)
+            s_b = _exit(kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr, px, py, pz, n[0], n[1],
+                        n[2], gs[i, j], 1.0, scale, st)
+            d = s_b - s_a
+            if not (d > 0.0):
+                continue
+            for k in range(4):
+                di = (1, -1, 0, 0)[k]
+                dj = (0, 0, 1, -1)[k]
+                hh = h1 if k < 2 else h2
+                ii = i + di
+                jj = j + dj
+                if ii < 0 or jj < 0 or ii >= N or jj >= N:
+                    ext[k] = 0.5 * hh
+                    continue
+                if gm[ii, jj] < 0.0:
+                    ext[k] = 0.5 * hh
+                    continue
+                # bisect the boundary on the segment to the outside neighbour
+                lo_ = 0.0
+                hi_ = 1.0
+                sg = gs[i, j]
+                for _ in range(nbis):
+                    t = 0.5 * (lo_ + hi_)
+                    qx = px + t * (gx_[ii, jj, 0] - px)
+                    qy = py + t * (gx_[ii, jj, 1] - py)
+                    qz = pz + t * (gx_[ii, jj, 2] - pz)
+                    mq, sq = _midway(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1,
+                                     sb, ops, lk, lr, qx, qy, qz, n[0], n[1], n[2], sg, scale,
+                                     st)
+                    if mq < 0.0:
+                        lo_ = t
+                        sg = sq
+                    else:
+                        hi_ = t
+                ext[k] = 0.5 * (lo_ + hi_) * hh
+            l1 = ext[0] + ext[1]
+            l2 = ext[2] + ext[3]
+            w = l1 * l2
+            q1 = ((2.0 * i + 1.0) / N - 1.0) * w1 + 0.5 * (ext[0] - ext[1])
+            q2 = ((2.0 * j + 1.0) / N - 1.0) * w2 + 0.5 * (ext[2] - ext[3])
+            A += w
+            V += w * d
+            cA1 += w * q1
+            cA2 += w * q2
+            cV1 += w * d * q1
+            cV2 += w * d * q2
+            cVs += w * d * 0.5 * (s_a + s_b)
+            J11 += w * (q1 * q1 + l1 * l1 / 12.0)
+            J12 += w * q1 * q2
+            J22 += w * (q2 * q2 + l2 * l2 / 12.0)
+            dmax = max(dmax, d)
+    if not (V > 0.0):
+        return PATCH_OK
+    a1 = cA1 / A
+    a2 = cA2 / A
+    J11 -= A * a1 * a1
+    J12 -= A * a1 * a2
+    J22 -= A * a2 * a2
+    half = 0.5 * (J11 + J22)
+    rad_ = math.sqrt(0.25 * (J11 - J22) ** 2 + J12 * J12)
+    lam1 = half + rad_
+    lam2 = max(half - rad_, 1e-300)
+    r = math.sqrt(lam1 / lam2)
+    ea = math.sqrt(A * r / math.pi)            # the equal-area ellipse of the region's shape
+    eb = A / (math.pi * ea)
+    kk = _agm_ellipk(1.0 - 1.0 / (r * r))
+    k = math.pi * ea * estar / (kk * A)        # pressure per unit overlap
+    q1 = cV1 / V
+    q2 = cV2 / V
+    qs = cVs / V
+    for e in range(3):
+        out[e] = c[e] + q1 * u1[e] + q2 * u2[e] + qs * n[e]
+    out[6] = dmax
+    out[7] = k * V
+    out[8] = k * A
+    out[9] = A
+    out[10] = V
+    out[11] = ea
+    out[12] = eb
+    if dmax > DIST_DEEP_LIMIT * scale:
+        return PATCH_DIST_DEEP
+    return PATCH_OK
+
+
+@njit(cache=True)
+def _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, shape_p0,
+              shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk, lr, estar,
+              N, zooms, nbis, out, status):
+    """Distributed contact i of :func:`distributed_geometry` (writes only row i)."""
+    xa = np.empty(3)
+    xb = np.empty(3)
+    zero = np.zeros(3)
+    ia = a[i]
+    ib = b[i]
+    ka, rada, Ra, oa0, oa1, _ = _side(ia, zero, pos, rot, shape_of, shape_kind, shape_rad,
+                                      shape_op, wall_op, wall_sign, wall_pos, wall_rot, xa)
+    kb, radb, Rb, ob0, ob1, sb = _side(ib, shift[i], pos, rot, shape_of, shape_kind,
+                                       shape_rad, shape_op, wall_op, wall_sign, wall_pos,
+                                       wall_rot, xb)
+    pa0 = pa1 = pb0 = pb1 = 0
+    if ka == 1:
+        pa0 = shape_p0[shape_of[ia]]
+        pa1 = pa0 + shape_np[shape_of[ia]]
+    if ib >= 0 and kb == 1:
+        pb0 = shape_p0[shape_of[ib]]
+        pb1 = pb0 + shape_np[shape_of[ib]]
+    status[i] = _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk,
+                           lr, pa0, pa1, pb0, pb1, probes, N, zooms, nbis, estar[i], out[i])
+
+
+@njit(cache=True)
+def _dist_serial(a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, shape_p0,
+                 shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk, lr, estar,
+                 N, zooms, nbis, out, status):
+    for i in range(a.shape[0]):
+        _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op,
+                  shape_p0, shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk,
+                  lr, estar, N, zooms, nbis, out, status)
+
+
+@njit(cache=True, parallel=True)
+def _dist_parallel(a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, shape_p0,
+                   shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk, lr,
+                   estar, N, zooms, nbis, out, status):
+    for i in prange(a.shape[0]):
+        _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op,
+                  shape_p0, shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk,
+                  lr, estar, N, zooms, nbis, out, status)
+
+
+#: Below this many distributed contacts they are computed serially (same bits either way).
+DIST_PARALLEL_MIN = 4
+
+
+def distributed_geometry(a, b, shift, pos, rot, shape_of, geo, estar):
+    """The distributed contact of each pair (a[i], b[i] at image shift[i]; E* per pair):
+    (out (P, 13): point (3), normal (3), largest overlap, elastic force, stiffness S, area,
+    overlap volume, ellipse semi-axes; status (P,)). A pair with nothing overlapping has
+    force 0."""
+    n = len(a)
+    out = np.zeros((n, 13))
+    status = np.zeros(n, np.int64)
+    nps = np.diff(np.append(geo.shape_p0, len(geo.probes))).astype(np.int64)
+    run = _dist_parallel if n >= DIST_PARALLEL_MIN else _dist_serial
+    run(np.asarray(a, np.int64), np.asarray(b, np.int64), np.ascontiguousarray(shift), pos, rot,
+        shape_of, geo.shape_kind, geo.shape_rad, geo.shape_op, geo.shape_p0, nps, geo.probes,
+        geo.wall_op, geo.wall_sign, geo.wall_pos, geo.wall_rot, geo.ops, geo.lk, geo.lr,
+        np.ascontiguousarray(estar, dtype=np.float64), np.int64(DIST_GRID),
+        np.int64(DIST_ZOOMS), np.int64(DIST_BISECT), out, status)
+    return out, status
+
+
+@njit(cache=True)
+def _rhs_linear(x, u, g):
+    # the linear law's calibration: x' = u, u' = -max(0, x + g u)
+    if x <= 0.0:
+        return 0.0
+    f = x + g * u
+    return -f if f > 0.0 else 0.0
+
+
+@njit(cache=True)
+def rebound_speed_linear(g, h):
+    """:func:`rebound_speed` for the linear law ``x'' = -max(0, x + g x')``."""
+    x = 0.0
+    u = 1.0
+    for _ in range(100_000_000):
+        k1x = u
+        k1u = _rhs_linear(x, u, g)
+        k2x = u + 0.5 * h * k1u
+        k2u = _rhs_linear(x + 0.5 * h * k1x, u + 0.5 * h * k1u, g)
+        k3x = u + 0.5 * h * k2u
+        k3u = _rhs_linear(x + 0.5 * h * k2x, u + 0.5 * h * k2u, g)
+        k4x = u + h * k3u
+        k4u = _rhs_linear(x + h * k3x, u + h * k3u, g)
+        xn = x + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
+        un = u + h / 6.0 * (k1u + 2.0 * k2u + 2.0 * k3u + k4u)
+        if xn <= 0.0 and un < 0.0:
+            return -un
+        x = xn
+        u = un
+    return 0.0
+
+
+@lru_cache(maxsize=4096)
+def damping_gamma_linear(e):
+    """:func:`damping_gamma` for a distributed contact: the ``gamma`` with which the clamped
+    linear law ``F = S delta + gamma sqrt(S m*) delta'`` (S constant) rebounds at ``e``."""
+    e = check_float("e_n", e, E_MIN, 1.0)
+    if e == 1.0:
+        return 0.0
+    from scipy.optimize import brentq
+
+    def rest(g):
+        return float(rebound_speed_linear(g, _CAL_STEP))
+    hi = 1.0
+    while rest(hi) > e:
+        hi *= 2.0
+    return float(brentq(lambda g: rest(g) - e, 0.0, hi, xtol=1e-14, rtol=1e-12))
+
+
+# --------------------------------------------------------------------------------------------
 # per-simulation state
 # --------------------------------------------------------------------------------------------
 
@@ -1088,6 +1714,7 @@ class HertzState:
         self.last = None                       # the last substep's contacts and forces
         self.cand = None                       # the candidate list (see substep)
         self.spacing = None                    # (geometry, probe spacing per shape)
+        self.dist_last = None                  # the last distributed contacts' details
 
     def set_material(self, material_id, youngs, poisson):
         """Young's modulus ``youngs`` (> 0, finite; pressure units) and Poisson ratio
@@ -1185,6 +1812,62 @@ def _pair_parameters(sim, c, state, mass_inv):
     return 1.0 / ce, 1.0 / cg, rstar, mstar, gam, np.ascontiguousarray(mu_c, dtype=np.float64)
 
 
+def _pair_restitution(sim, c):
+    """e_n per contact (the pair material's, as :func:`_pair_parameters` uses)."""
+    from peclet.dem.materials import per_contact
+    mats = sim._materials
+    if mats.active():
+        e_c, _, _ = mats.per_contact(c.a, c.b, sim._material, sim._geometry())
+    else:
+        e_c, _, _ = per_contact(c.b, sim._material, sim._geometry())
+    return np.asarray(e_c, np.float64)
+
+
+def _distributed_rows(sim, state, cand, x, rotm, pa, pb, pp, pn, pg, status, kept):
+    """Replace, in the composed rows' geometry (``pp``, ``pn``, ``pg``, ``status``, changed
+    in place), every pair with a contact the patch law cannot hold (a status other than
+    PATCH_OK on a touching patch, or a pair seeded MODE_DISTRIBUTED) by one distributed
+    contact on the pair's first row (the others get gap +inf). Returns (rows (D,) in the
+    composed arrays, overlap-law arrays: kernel gap (D,), kernel R* (D,), gamma (D,)) or None
+    when no pair is distributed. Raises HertzPatchError (state restored from ``kept``) for a
+    distributed contact it refuses."""
+    dist = (status != PATCH_OK) | (cand.mode == MODE_DISTRIBUTED)
+    # a pair with a failed seed (a watched probe) and no touching Hertz patch is sampled too:
+    # a line or edge contact can lie between the probes
+    watched = (cand.mode == 1) | (cand.mode == 2)
+    if np.any(watched):
+        hertz_touch = np.unique(cand.first[(cand.mode == 0) & (pg < 0.0)])
+        dist |= watched & ~np.isin(cand.first, hertz_touch)
+    if not np.any(dist):
+        return None
+    rep = np.unique(cand.first[dist])
+    in_d = np.isin(cand.first, rep)
+    k = cand.comp
+    estar = cand.params[0][k][rep]
+    out, dst = distributed_geometry(pa[rep], pb[rep], cand.shift[k][rep], x, rotm,
+                                    sim._shape_table()[1], sim._geometry(), estar)
+    if np.any(dst != PATCH_OK):
+        state.keys, state.xi, state.cand = kept
+        _raise_patch_error(pa[rep], pb[rep], dst)
+    pg[in_d] = np.inf
+    status[in_d] = PATCH_OK
+    force, stiff = out[:, 7], out[:, 8]
+    touch = force > 0.0
+    pg[rep] = np.where(touch, -out[:, 6], np.inf)
+    pp[rep] = out[:, :3]
+    pn[rep] = out[:, 3:6]
+    # the overlap law through the Hertz kernel: a delta_h and R*_h with the same force F and
+    # stiffness S (F = 4/3 E* sqrt(R*_h) delta_h^1.5, S = 2 E* sqrt(R*_h delta_h))
+    dh = np.where(touch, 1.5 * force / np.where(touch, stiff, 1.0), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rh = np.where(touch, (0.75 * force / (estar * np.where(touch, dh, 1.0) ** 1.5)) ** 2,
+                      0.0)
+    e = cand.e_n[k][rep]
+    gam = np.array([damping_gamma_linear(float(v)) for v in e])
+    state.dist_last = out
+    return rep, np.where(touch, -dh, np.inf), rh, gam
+
+
 def check(sim, state, dt):
     """Refuse what the engine cannot run: undeclared moduli, a dt above ``RAYLEIGH_FRACTION``
     of the smallest Rayleigh time (a composed body: its bounding radius, its mass spread over
@@ -1239,6 +1922,7 @@ class Candidates(NamedTuple):
     u: np.ndarray = None
     first: np.ndarray = None
     q_ref: np.ndarray = None
+    e_n: np.ndarray = None
 
 
 class _Pairs(NamedTuple):
@@ -1314,8 +1998,11 @@ def _composed_candidates(sim, state, c, x, rot, geo, shape_of, skin, n_walls):
         geo.lr, ct, cc)
     too_many = np.flatnonzero(cnt > MAX_PATCHES)
     if len(too_many):
-        k = int(cg[too_many[0]])
-        raise HertzPatchError(c.a[g0[k]], c.b[g0[k]], _PATCH_REASONS[PATCH_TOO_MANY])
+        # more patches than one pair may hold: the pair's contact is distributed
+        cnt[too_many] = 1
+        mode[too_many, 0] = MODE_DISTRIBUTED
+        u[too_many, 0] = 0.0
+        probe[too_many, 0] = -1
     spacing = _probe_spacing(state, geo)
     old_keys, old_xi = state.keys, state.xi
     mask = (1 << _FEATURE_BITS) - 1
@@ -1350,6 +2037,9 @@ def _composed_candidates(sim, state, c, x, rot, geo, shape_of, skin, n_walls):
         feat = np.empty(m, np.int64)
         taken = set()
         for j in range(m):
+            if md[j] == MODE_DISTRIBUTED:
+                feat[j] = DIST_FEATURE
+                continue
             if md[j] != 0:
                 feat[j] = FAILED_FEATURE + (FEATURE_DIR if md[j] == 2 else 0) + int(pr[j])
                 continue
@@ -1365,6 +2055,13 @@ def _composed_candidates(sim, state, c, x, rot, geo, shape_of, skin, n_walls):
         sel = np.flatnonzero(((old_keys >> _FEATURE_BITS) == (pair_key >> _FEATURE_BITS))
                              & ((old_keys & mask) < FAILED_FEATURE))
         live = np.flatnonzero(md == 0)
+        # a distributed contact's history keeps its key (the pair and DIST_FEATURE)
+        dk = WarmStart.keys_of(_Pairs(np.array([ia]), np.array([ib]),
+                                      np.array([DIST_FEATURE])), n_walls)[0]
+        hit = np.flatnonzero(old_keys == dk)
+        if len(hit):
+            carried_keys.append(dk)
+            carried_xi.append(old_xi[hit[0]])
         if len(sel) and len(live):
             of = (old_keys[sel] & mask) - off
             ok = (of >= 0) & (of < len(pts))
@@ -1457,7 +2154,8 @@ def _candidates(sim, state, x, q, skin_frac, inv_mass):
         a, b, shift, feat, keys, crow, srow, mode, u, first = comp
         cand = Candidates(a, b, shift, feat, keys, x.copy(), skin, radii,
                           _pair_parameters(sim, _Pairs(a, b, feat), state, inv_mass),
-                          crow, srow, mode, u, first, q.copy())
+                          crow, srow, mode, u, first, q.copy(),
+                          _pair_restitution(sim, _Pairs(a, b, feat)))
     state.cand = cand
     return cand
 
@@ -1469,7 +2167,7 @@ def substep(sim, state, dt, skin_frac):
     import time
 
     from peclet.dem import solver
-    from peclet.dem.contacts import Contacts, lever_arms
+    from peclet.dem.contacts import Contacts, WarmStart, lever_arms
     from peclet.dem.rigid import advance_all
 
     t0 = time.perf_counter()
@@ -1492,6 +2190,7 @@ def substep(sim, state, dt, skin_frac):
     geo = sim._geometry()
     estar, gstar, rstar, mstar, gam, mu = cand.params
     unew = None
+    dist = None
     if cand.comp is None:
         contact_geometry(cand.a, cand.b, cand.shift, x, cand.radii, geo.wall_op, geo.wall_sign,
                          geo.wall_pos, geo.wall_rot, geo.ops, geo.lk, geo.lr, point, normal,
@@ -1507,17 +2206,33 @@ def substep(sim, state, dt, skin_frac):
             point[s], normal[s], gap[s] = ps, ns, gs
         k = cand.comp
         pa, pb = cand.a[k], cand.b[k]
+        rotm = np.ascontiguousarray(quats_to_matrices(q))
         pp, pn, pg, pr, _, unew, status = patch_geometry(
             pa, pb, np.ascontiguousarray(cand.shift[k]), cand.mode, cand.u, cand.first, x,
-            np.ascontiguousarray(quats_to_matrices(q)), sim._shape_table()[1], geo)
+            rotm, sim._shape_table()[1], geo)
+        dist = _distributed_rows(sim, state, cand, x, rotm, pa, pb, pp, pn, pg, status, kept)
         if np.any(status != PATCH_OK):
             state.keys, state.xi, state.cand = kept
             _raise_patch_error(pa, pb, status)
         point[k], normal[k], gap[k] = pp, pn, pg
         rstar = rstar.copy()
         rstar[k] = pr
-    c = Contacts(cand.a, cand.b, cand.shift, point, normal, gap, cand.feat)
-    keys = cand.keys
+    feat, keys = cand.feat, cand.keys
+    gap_k = gap
+    if dist is not None:
+        # the distributed contacts: their own key and the overlap law through the kernel
+        rows = cand.comp[dist[0]]
+        feat = feat.copy()
+        feat[rows] = DIST_FEATURE
+        keys = keys.copy()
+        keys[rows] = WarmStart.keys_of(_Pairs(cand.a[rows], cand.b[rows], feat[rows]),
+                                       len(sim._walls))
+        gap_k = gap.copy()
+        gap_k[rows] = dist[1]
+        rstar[rows] = dist[2]
+        gam = gam.copy()
+        gam[rows] = dist[3]
+    c = Contacts(cand.a, cand.b, cand.shift, point, normal, gap, feat)
     xi = state.lookup(keys)
     ra, rb = lever_arms(c, x)
     nc = len(c.a)
@@ -1527,7 +2242,7 @@ def substep(sim, state, dt, skin_frac):
         vw[isw] = sim._wallmo.surface_velocity(-1 - c.b[isw], c.point[isw])
     force = np.empty((nc, 3))
     fn = np.empty(nc)
-    contact_forces(c.a, c.b, np.ascontiguousarray(c.normal), np.ascontiguousarray(c.gap), ra,
+    contact_forces(c.a, c.b, np.ascontiguousarray(c.normal), np.ascontiguousarray(gap_k), ra,
                    rb, v, w, vw, estar, gstar, rstar, mstar, gam, mu, xi, dt, force, fn)
     fb = np.zeros((b.n, 3)) if sim._ext_force is None else sim._ext_force.copy()
     tb = np.zeros((b.n, 3)) if sim._ext_torque is None else sim._ext_torque.copy()
