@@ -17,7 +17,15 @@
    the Carman-Kozeny (k = eps^3 d^2 / (180 (1 - eps)^2)) and Ergun viscous (150) terms, flow
    along y (the window wrapped; mirrored, k along y comes out ~30% too high: see
    :mod:`peclet.flow.permeability`).
-5. The page's 48-ring pack (``--page-pack``) at D/8, D/16 and D/24 (quick: D/8, D/12),
+5. Column sections (``column``): Poiseuille flow in an empty pipe made by a column's wall
+   (the container's own side-wall tree; k = R^2 / 8 relative to the pipe's cross-section,
+   R = 1 D at D/4, D/8, D/12, D/16: error and observed order); the same pipe with a sphere
+   (0.8 R across) at the wrapped section's seam (k fitted away from the seam against the
+   whole period's); a rained sphere column (``peclet.packing.pack``, D_t = 5 D, 150 spheres;
+   quick: 4 D, 90) at D/8 (quick: D/6): k, porosity with the near-wall region, D_t / d_p,
+   dP/L against Eisfeld & Schnitzlein, the seam's share, the wall's share of the drag, the
+   force balance and the period-2 swing.
+6. The page's 48-ring pack (``--page-pack``) at D/8, D/16 and D/24 (quick: D/8, D/12),
    Richardson-extrapolated (observed order from the three), with each run's lattice size,
    fluid nodes, memory of the solver's arrays, the process's peak resident memory and the
    iteration count.
@@ -142,13 +150,76 @@ def page_pack(path, resolutions=(8, 16, 24), tol=1e-6):
     return {"runs": rows, "richardson": ext}
 
 
+def _lone_sphere_column(n, y, r):
+    """A column:n pack of one sphere of radius r on the axis at height y (the pipe rungs)."""
+    from peclet.core import geom
+    from peclet.packing.containers import Container
+    from peclet.packing.freeze import Pack
+    c = Container.column(n)
+    b = geom.SceneBuilder()
+    root = b.add_leaf("sphere", [r])
+    ni, nr, _, _ = b.encode()
+    cx, cz = c.center_xz
+    return Pack(positions=np.array([[cx, y, cz]]), quaternions=np.array([[0.0, 0, 0, 1]]),
+                box=np.array(c.period), ring_volume=4.0 / 3.0 * math.pi * r ** 3,
+                node_ints=ni, node_reals=nr, home_root=root, bounding_radius=r,
+                shell=np.zeros((0, 3)), mass=np.nan, inv_inertia=np.full(3, np.nan)), c
+
+
+def column_pipe(resolutions=(4, 8, 12, 16)):
+    """k of an empty pipe (column:2, R = 1 D) against R^2 / 8, per resolution."""
+    pk, c = _lone_sphere_column(2.0, 30.0, 0.5)
+    rows = []
+    for r in resolutions:
+        pf = permeability(pk, resolution=r, container=c, window=(0.0, 2.0), tol=1e-9,
+                          area_n=40, seam_margin=0.5)
+        rows.append({"R_cells": r, "k_D2": pf.k_D2, "err": pf.k_D2 / 0.125 - 1.0,
+                     "seam_share": pf.info["seam_share"], "steps": pf.flow.steps})
+    for a, b in zip(rows, rows[1:]):
+        b["order"] = math.log(abs(a["err"]) / abs(b["err"])) / math.log(b["R_cells"]
+                                                                         / a["R_cells"])
+    return rows
+
+
+def column_seam(resolution=8, margin=1.5):
+    """The pipe with a sphere of diameter 0.8 D at the seam: k away from the seam (fit) and
+    over the whole period, against the empty pipe's at the same resolution."""
+    pk, c = _lone_sphere_column(2.0, 30.0, 0.5)
+    k_pipe = permeability(pk, resolution=resolution, container=c, window=(0.0, 6.0),
+                          tol=1e-9, area_n=40).k_D2
+    pk, c = _lone_sphere_column(2.0, 0.0, 0.4)
+    pf = permeability(pk, resolution=resolution, container=c, window=(0.0, 6.0), tol=1e-9,
+                      area_n=40, seam_margin=margin)
+    return {"resolution": resolution, "margin_D": margin, "k_pipe": k_pipe,
+            "k_seam_free": pf.k_D2, "ratio_seam_free": pf.k_D2 / k_pipe,
+            "k_period": pf.info["k_D2_period"],
+            "ratio_period": pf.info["k_D2_period"] / k_pipe,
+            "seam_share": pf.info["seam_share"], "seam_share_se": pf.info["seam_share_se"]}
+
+
+def column_bed(n=5.0, count=150, resolution=8, seed=3, tol=1e-6):
+    """Spheres rained into column:n, then the flow through the middle of the bed."""
+    from peclet.packing import Material, RainProtocol, pack
+    res = pack("sphere", f"column:{n:g}", count=count,
+               protocol=RainProtocol(drop=3.0, settle_steps=3000, calm_steps=20,
+                                     quench_steps=20),
+               material=Material(e_n=0.3, e_t=0.0, mu=0.3), seed=seed, progress=False)
+    pf = permeability(res.pack, resolution=resolution, container=res.container, tol=tol)
+    s = pf.summary()
+    keep = ("resolution", "k_D2", "k_D2_period", "eps", "eps_core", "D_t_over_d_p", "A_w",
+            "ergun_wall_ratio", "ergun_ratio_volume", "seam_share", "seam_share_se",
+            "wall_drag_share", "balance_two_step", "parity_swing", "steps", "converged",
+            "window", "dims", "fluid_nodes", "Re")
+    return {"count": count, "column_D": n, **{k: s[k] for k in keep}}
+
+
 def _table(rows, cols):
     from benchmarks._report import table
     return table([[r[c] if not isinstance(r[c], float) else f"{r[c]:.5g}" for c in cols]
                   for r in rows], cols)
 
 
-RUNGS = ("slit", "pipe", "zh", "random", "page")
+RUNGS = ("slit", "pipe", "zh", "random", "column", "page")
 
 
 def _rungs(text):
@@ -220,9 +291,29 @@ def main(argv=None):
         print("\n4. Random sphere pack\n" + _table([rs], ["count", "resolution", "eps",
                                                          "k_D2", "k_carman_kozeny", "ratio_ck",
                                                          "kozeny", "ergun_ratio"]))
+    if "column" in a.rungs:
+        out["column_pipe"] = column_pipe((4, 8) if a.quick else (4, 8, 12, 16))
+        print("\n5. Column sections\n   empty pipe made by the column's wall (R = 1 D), k "
+              "against R^2 / 8\n" + _table([{**r, "order": r.get("order", "")}
+                                              for r in out["column_pipe"]],
+                                             ["R_cells", "k_D2", "err", "order", "seam_share",
+                                              "steps"]))
+        out["column_seam"] = column_seam(6 if a.quick else 8)
+        print("   a sphere (0.8 D) at the seam: k over the empty pipe's\n"
+              + _table([out["column_seam"]], ["resolution", "margin_D", "ratio_seam_free",
+                                              "ratio_period", "seam_share",
+                                              "seam_share_se"]))
+        out["column_bed"] = column_bed(*((4.0, 90, 6) if a.quick else (5.0, 150, 8)))
+        cb = out["column_bed"]
+        print("   rained sphere column, middle of the bed\n"
+              + _table([cb], ["column_D", "count", "resolution", "k_D2", "eps", "eps_core",
+                              "D_t_over_d_p", "A_w", "ergun_wall_ratio", "seam_share",
+                              "wall_drag_share"])
+              + f"\n   force balance (two-step) {cb['balance_two_step']:.8f}, period-2 swing "
+              f"{cb['parity_swing']:.2e}, k over the whole period {cb['k_D2_period']:.5g} D^2")
     if "page" in a.rungs and a.page_pack:
         out["page"] = page_pack(a.page_pack, (8, 12) if a.quick else (8, 16, 24))
-        print("\n5. The page's ring pack\n" + _table(out["page"]["runs"],
+        print("\n6. The page's ring pack\n" + _table(out["page"]["runs"],
               ["resolution", "k_D2", "kozeny", "ergun_ratio_sauter", "ergun_ratio_envelope",
                "steps", "lattice_cells", "fluid_nodes", "memory_MiB", "peak_rss_MiB"]))
         ext = out["page"]["richardson"]

@@ -2,6 +2,13 @@
 
     peclet flow pall_ring_pack.npz --resolution D/16 --out flow/
     peclet flow pack.npz --resolutions 12,16,24 --out flow/      (grid study + Richardson)
+    peclet flow bed/pack.npz --resolution D/12 --out flow/       (a column: its section)
+
+A pack made in a column (``peclet pack --container column:N``) runs as a section of the bed
+with the column's wall (read from the results.json beside the pack, or given by --container):
+flow along the axis, periodic over the section, k and dP/L measured away from the section's
+seam and compared with Eisfeld & Schnitzlein's wall-corrected Ergun equation
+(peclet.flow.permeability).
 
 Any pack peclet writes (``peclet pack``'s pack.npz, ``peclet pall-ring``'s
 pall_ring_pack.npz). Writes into --out ``results.json`` (every resolution's k, dP/L, Kozeny
@@ -38,15 +45,22 @@ def add_parser(sub):
       "[4, 64] (default D/16)")
     a("--resolutions", default=None, help="a grid study: comma-separated resolutions "
       "(e.g. 12,16,24); k is extrapolated (Richardson; observed order with 3)")
-    a("--axis", default="y", help="flow direction x, y (the bed's axis, default) or z")
+    a("--axis", default="y", help="flow direction x, y (the bed's axis, default) or z "
+      "(a column: y)")
+    a("--container", default=None, help="the pack's container: box (periodic) or column:N "
+      "(N element diameters, as peclet pack); default: the one recorded in the results.json "
+      "beside the pack, else box")
+    a("--seam-margin", default="1", help="distance (D, >= 0) from the wrapped window's seam "
+      "beyond which dP/L is measured (default 1)")
     a("--window", default=None, help="y0,y1: the bulk window in D (default: the page's, 1 D "
-      "above the floor to 0.8 D below the highest centre)")
+      "above the floor to 0.8 D below the highest centre; a column: the middle of the bed, "
+      "2 D off the floor and the top)")
     a("--y-mode", default="wrap", help="wrap (the window periodic onto itself, with a seam; "
       "default), mirror (window + its mirror image: no seam, but k along y too high: "
       "peclet.flow.permeability) or open (refused: no walls)")
     a("--re", default="0.01", help="target Reynolds number U D / nu in (0, 10] (default 0.01)")
-    a("--tol", default="1e-6", help="relative convergence tolerance on the superficial "
-      "velocity (default 1e-6)")
+    a("--tol", default="1e-6", help="relative convergence tolerance on the mean velocity "
+      "(default 1e-6; the force balance must also close to 1e-4: peclet.flow.solver)")
     a("--max-steps", default="100000", help="step limit per resolution (default 100000)")
     a("--threads", default=None, help="numba threads (default: numba's)")
     a("--out", default="flow_results", help="output directory (default ./flow_results)")
@@ -102,7 +116,10 @@ def _options(args):
     steps = number("--max-steps", args.max_steps, int)
     if steps < 1:
         raise PecletArgumentError("--max-steps", "an integer >= 1", args.max_steps)
-    return res, window, re_, tol, steps
+    margin = number("--seam-margin", args.seam_margin, float)
+    if not (math.isfinite(margin) and margin >= 0.0):
+        raise PecletArgumentError("--seam-margin", "a distance >= 0 in D", args.seam_margin)
+    return res, window, re_, tol, steps, margin
 
 
 def _reason(message):
@@ -122,7 +139,7 @@ def run(args):
     from peclet.packing.freeze import load_pack
     from peclet.packing.progress import Progress
 
-    res, window, re_, tol, steps = _options(args)
+    res, window, re_, tol, steps, margin = _options(args)
     threads = threads_option(args.threads)
     try:
         pack = load_pack(args.pack)
@@ -130,6 +147,19 @@ def run(args):
         raise PecletArgumentError("pack", "a peclet pack file (.npz written by peclet pack or "
                                   "peclet pall-ring)", args.pack,
                                   _reason(str(exc))) from None
+    from peclet.flow.permeability import pack_container
+    try:
+        cont, source = pack_container(args.pack if args.container is None else pack,
+                                      args.container)
+        if cont is not None:
+            from peclet.flow.permeability import _check_column_holds
+            _check_column_holds(pack, cont)
+    except PecletArgumentError as exc:
+        raise PecletArgumentError("--container", "box or column:N holding the pack",
+                                  args.container, _reason(str(exc))) from None
+    if cont is not None and args.axis != "y":
+        raise PecletArgumentError("--axis", "y for a column section (the column's axis; its "
+                                  "wall closes x and z)", args.axis)
     out, previous = check_output_dir(args.out, OUTPUTS, args.overwrite, "--out")
     if threads is not None:
         import numba
@@ -144,12 +174,14 @@ def run(args):
             try:
                 pf = permeability(pack, resolution=r, axis=args.axis, window=window,
                                   y_mode=args.y_mode, Re=re_, tol=tol, max_steps=steps,
-                                  progress=bar)
+                                  progress=bar, container=cont if cont is not None
+                                  else "box", seam_margin=margin)
             finally:
                 bar.close()
         for w in caught:
             print(f"peclet flow: warning: {w.message}", flush=True)
         s = pf.summary()
+        s["container_source"] = source
         s["wall_seconds"] = time.perf_counter() - t0
         rows.append(s)
         runs.append(pf)
@@ -181,10 +213,21 @@ def table(rows, study=None):
             ("dP/L / Ergun, Sauter d", "ergun_ratio_sauter", "{:.3f}"),
             ("dP/L / Ergun, envelope d", "ergun_ratio_envelope", "{:.3f}"),
             ("drag spread (CV)", "drag_cv", "{:.3f}"), ("wall force / body force",
-                                                         "solid_drag_balance", "{:.5f}"),
+                                                         "solid_drag_balance", "{:.7f}"),
+            ("period-2 swing of that", "parity_swing", "{:.2e}"),
+            ("column D_t / d_p", "D_t_over_d_p", "{:.3f}"),
+            ("porosity, core (> 1 D from wall)", "eps_core", "{:.4f}"),
+            ("k whole period, seam incl. (D^2)", "k_D2_period", "{:.5g}"),
+            ("seam share of the drive", "seam_share", "{:+.4f}"),
+            ("  its standard error", "seam_share_se", "{:.4f}"),
+            ("Eisfeld-Schnitzlein A_w", "A_w", "{:.4f}"),
+            ("dP/L / Eisfeld-Schnitzlein (wall)", "ergun_wall_ratio", "{:.3f}"),
+            ("dP/L / Ergun, volume d, no wall", "ergun_ratio_volume", "{:.3f}"),
+            ("column wall's share of the drag", "wall_drag_share", "{:.4f}"),
             ("steps", "steps", "{}"), ("converged", "converged", "{}"),
             ("MLUPS", "mlups", "{:.2f}"), ("wall time (s)", "wall_seconds", "{:.1f}")]
     head = ["", *[f"D/{r['resolution']:g}" for r in rows]]
+    keys = [k for k in keys if all(k[1] in r for r in rows)]
     body = [[name, *[fmt.format(r[k]) for r in rows]] for name, k, fmt in keys]
     if study is not None:
         p = study["p"]

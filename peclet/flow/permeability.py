@@ -19,8 +19,47 @@ The flow needs a periodic y as well; ``y_mode`` says how:
   planes (x, z) is barely affected (2%);
 - ``"open"``: not periodic and no walls: refused (fluid would leave the box).
 
+**Column sections** (a pack made in a ``column:N`` container, :func:`pack_container`): the
+lattice covers the column's cross-section and is not periodic across it: the column's wall,
+taken from the same :class:`~peclet.packing.containers.Container` the pack used (its side wall
+tree, whose signed distance inside the column is exactly ``R - r``), closes x and z, so no
+fluid leaves the box there. The flow runs along the axis (y), periodic over an axial section
+of the bed, by default its middle (the floor and the top each cut by
+``min(2 D, bed height / 3)``, as the bed's own analysis crops it). The elements are not
+periodic along the axis, so the section is wrapped (``y_mode="wrap"``): the bed at the
+section's top meets the bed at its bottom at a *seam* where elements cut at both ends face each
+other (not mirrored: a mirror plane joins each cut element to its image into a body
+stretched along the axis and the pores into straight channels, and the flow is *along* the
+axis here; see ``"mirror"`` above). The seam's structure is wrong: it may block or open the
+flow locally, and the whole period's resistance includes it. So dP/L is measured *away from
+the seam*: the fluid-averaged pressure p = rho c_s^2 of every lattice plane (all fluid nodes of
+the plane) is fitted by a line over the planes more than ``seam_margin`` (1 D) from the seam;
+its slope s enters the momentum balance of the bulk, where the driving gradient is
+``dP/L = g - s`` (g the body force density). The seam's excess resistance is the pressure
+jump it carries; ``seam_share = s / g`` is its share of the drive (0 for a seam that changes
+nothing: an empty pipe). Its error: the fit's standard error (reported), and the seam's
+disturbance reaching beyond the margin (a pore's length, decaying). The whole-period value
+``k_D2_period = mu U / g`` (seam included) is reported beside it.
+
+For a column, U is the flux over uncut links per unit *column* cross-section (pi R^2, exact),
+the porosity ``eps`` is the lattice's fluid fraction of the nodes inside the wall (so it
+includes the wall's loose first layer), and the pressure drop is compared with Eisfeld &
+Schnitzlein's (2001) wall-corrected Ergun equation (Reichelt's form) with their constants for
+spheres, K1 = 154, k1 = 1.15, k2 = 0.87::
+
+    dP/L = K1 A_w^2 (1 - eps)^2 / eps^3 * mu U / d_p^2 + A_w / B_w (1 - eps) / eps^3 * rho U^2 / d_p
+    A_w = 1 + 2 / (3 (D_t / d_p) (1 - eps)),   B_w = (k1 (d_p / D_t)^2 + k2)^2
+
+with D_t the column diameter and d_p the volume-equivalent sphere diameter (6 V_p / pi)^(1/3)
+(= D for spheres; other shapes get the sphere constants, an approximation):
+``ergun_wall_ratio`` = measured dP/L over this. A_w > 1 is the wall's extra surface (more
+drag); B_w < 1 its loose packing (the inertial term, negligible at the default Re = 0.01).
+Also reported: D_t / d_p, the wall's share of the drag (links whose crossing is on the wall),
+and the core porosity (nodes more than 1 D from the wall).
+
 The flow is driven along ``axis`` by a uniform body force, so dP/L = rho g (the body force
-acts on the fluid like a mean pressure gradient). Lengths are in the element diameter D (the
+acts on the fluid like a mean pressure gradient; a column section measures it away from the
+seam, above). Lengths are in the element diameter D (the
 pack's unit); the lattice spacing is h = D / resolution.
 
 Outputs (:class:`PackFlow`): Darcy permeability ``k = mu U / (dP/L)`` (U the superficial
@@ -47,11 +86,15 @@ import numpy as np
 from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
 
 from .geometry import Grid, build_geometry
-from .lattice import MAGIC_DEFAULT
+from .lattice import C, MAGIC_DEFAULT, W
 from .solver import solve
 
-__all__ = ["PackFlow", "pack_domain", "permeability", "richardson", "thinnest_wall",
-           "ThinWallWarning", "Y_MODES"]
+__all__ = ["PackFlow", "pack_domain", "pack_container", "permeability", "richardson",
+           "thinnest_wall", "ThinWallWarning", "Y_MODES", "eisfeld_schnitzlein", "seam_fit",
+           "ES_SPHERES"]
+
+#: Eisfeld & Schnitzlein (2001), spheres: (K1, k1, k2) of their wall-corrected Ergun equation.
+ES_SPHERES = (154.0, 1.15, 0.87)
 
 Y_MODES = ("mirror", "wrap", "open")
 _AXIS = {"x": 0, "y": 1, "z": 2}
@@ -110,6 +153,8 @@ class PackFlow:
                 "ergun_ratio_envelope": self.ergun_ratio_envelope,
                 "drag_mean": float(np.mean(self.drag)), "drag_cv": self.drag_cv,
                 "solid_drag_balance": self.solid_drag_balance, "steps": f.steps,
+                "balance_two_step": f.balance, "parity_swing": f.parity_swing,
+                "tol": f.tol, "balance_tol": f.balance_tol,
                 "converged": f.converged, "residual": f.residual, "seconds": f.seconds,
                 "mlups": f.mlups, "fluid_nodes": f.geometry.n_fluid,
                 "cut_links": int(len(f.geometry.link_q)),
@@ -117,6 +162,9 @@ class PackFlow:
                 "mass_drift": f.mass_drift, "mass_correction": f.mass,
                 "k_D2_node_mean": self.k_D2 * float(f.U_nodes[_AXIS[self.info["axis"]]]
                                                     / f.U[_AXIS[self.info["axis"]]]),
+                "convergence": "two-step means: relative change of the mean velocity per "
+                f"check and its geometric tail < {f.tol:g}, |wall force / body force - 1| < "
+                f"{f.balance_tol:g}",
                 "lattice_cells": f.geometry.grid.n_cells,
                 "memory_MiB": f.memory_bytes / 2.0 ** 20, **self.info}
 
@@ -138,25 +186,120 @@ def thinnest_wall(pack):
     return best, name
 
 
-def pack_domain(pack, resolution, window=None, y_mode="wrap"):
+def pack_container(pack, container=None):
+    """(container, source): the container a pack was made in, for the flow.
+
+    ``container``: None (default: read from the ``results.json`` that ``peclet pack`` writes
+    beside its ``pack.npz``, when ``pack`` is a path and that file names the pack's container;
+    else the periodic box), "box" (the pack's periodic box), a spec "column:N" (N element
+    diameters, as ``peclet pack --container``), a :class:`~peclet.packing.containers.Container`
+    or the spec dict of ``results.json``. Returns (a column Container bound to the element's
+    diameter, or None for the periodic box; a phrase saying where it came from). Only boxes
+    and columns are accepted (PecletArgumentError naming ``container``); a column must hold the
+    pack: its analysis period is the pack's box and every element centre is inside it.
+    """
+    from peclet.packing.containers import Container, parse_container
+    from peclet.packing.freeze import Pack
+    source = "argument"
+    d = 1.0
+    if container is None:
+        container, source = "box", "default (periodic box)"
+        if not isinstance(pack, Pack):
+            side = os.path.join(os.path.dirname(os.path.abspath(os.fspath(pack))),
+                                "results.json")
+            if os.path.isfile(side):
+                import json
+                try:
+                    with open(side) as fh:
+                        doc = json.load(fh)
+                    spec = doc["spec"]["container"]
+                    if isinstance(spec, (dict, str)):
+                        d = float(doc.get("analysis", {}).get("d_elem", 1.0))
+                        container, source = spec, f"{side} (spec.container)"
+                except (ValueError, KeyError, TypeError, OSError):
+                    pass
+    if isinstance(container, str) and container.strip() == "box":
+        return None, source
+    cont = parse_container(container)
+    if cont.kind == "box":
+        return None, source
+    if cont.kind != "column":
+        raise PecletArgumentError("container", "box or column:N (peclet.flow runs periodic "
+                                  "boxes and column sections)", cont.label())
+    if not isinstance(container, Container):
+        cont = cont.bound(d)
+    pk = pack if isinstance(pack, Pack) else None
+    if pk is not None:
+        _check_column_holds(pk, cont)
+    return cont, source
+
+
+def _check_column_holds(pk, cont):
+    Lx, Lz = cont.period
+    if not np.allclose(pk.box, (Lx, Lz), rtol=1e-9, atol=1e-12):
+        raise PecletArgumentError("container", f"the column the pack was made in (its period, "
+                                  f"{Lx:g} x {Lz:g}, is the pack's box)", cont.label(),
+                                  f"the pack's box is {pk.box[0]:g} x {pk.box[1]:g}")
+    cx, cz = cont.center_xz
+    r = np.hypot(pk.positions[:, 0] - cx, pk.positions[:, 2] - cz)
+    if np.any(r >= cont.radius):
+        raise PecletArgumentError("container", "a column holding every element centre",
+                                  cont.label(), f"a centre {r.max():.4g} from the axis, radius "
+                                  f"{cont.radius:g}")
+
+
+def _wrap_y(pts, y0, H, y_mode):
+    """World points with y folded into the window [y0, y0 + H) (wrap) or its mirror period."""
+    if y_mode == "mirror":
+        t = np.mod(pts[:, 1] - y0, 2.0 * H)
+        pts[:, 1] = y0 + np.where(t <= H, t, 2.0 * H - t)
+    elif y_mode == "wrap":
+        pts[:, 1] = y0 + np.mod(pts[:, 1] - y0, H)
+    return pts
+
+
+def column_window(pack, floor_y=0.0):
+    """The default axial section of a column bed: (floor + c, top - c), top the highest
+    centre, c = min(2 D, (top - floor) / 3) (the bed analysis's crop, peclet.packing.report)."""
+    top = float(pack.positions[:, 1].max())
+    if not top > floor_y:
+        raise PecletArgumentError("pack", "a bed above the floor", f"{pack.n} elements",
+                                  f"highest centre at y = {top:.4g}")
+    c = min(2.0, (top - floor_y) / 3.0)
+    return (floor_y + c, top - c)
+
+
+def pack_domain(pack, resolution, window=None, y_mode="wrap", container=None):
     """(grid, phi, info) for a pack: the lattice over the window and the field on it.
 
     resolution: cells per D (>= 4). window: (y0, y1) in D, default the page's first bulk
-    window. y_mode: see the module docstring. The box sides must be whole numbers of cells
-    (to 1e-9 of a cell).
+    window (a column: :func:`column_window`). y_mode: see the module docstring. container:
+    None (the periodic box) or a column Container (:func:`pack_container`). The box sides must
+    be whole numbers of cells (to 1e-9 of a cell); a column's lattice is the square of
+    2 ceil(R / h) + 2 nodes about its axis (the outer nodes are in the wall).
     """
     from peclet.packing.analysis import bulk_windows
     resolution = check_float("resolution", resolution, 4.0, 256.0)
     y_mode = check_choice("y_mode", y_mode, Y_MODES)
+    column = container is not None
     Lx, Lz = (float(v) for v in pack.box)
-    nx = int(round(Lx * resolution))
-    h = Lx / nx
-    nz = int(round(Lz / h))
-    if abs(Lz / h - nz) > 1e-9 or nz < 2:
-        raise PecletArgumentError("resolution", "a resolution that makes both box sides whole "
-                                  f"numbers of cells (box {Lx:g} x {Lz:g} D)", resolution)
+    if column:
+        h = 1.0 / resolution
+        R = float(container.radius)
+        cx, cz = container.center_xz
+        nlat = 2 * int(math.ceil(R / h - 1e-9)) + 2
+        nx = nz = nlat
+    else:
+        nx = int(round(Lx * resolution))
+        h = Lx / nx
+        nz = int(round(Lz / h))
+        if abs(Lz / h - nz) > 1e-9 or nz < 2:
+            raise PecletArgumentError("resolution", "a resolution that makes both box sides "
+                                      f"whole numbers of cells (box {Lx:g} x {Lz:g} D)",
+                                      resolution)
     if window is None:
-        window = bulk_windows(pack)[0][0]
+        window = column_window(pack, container.floor_y) if column \
+            else bulk_windows(pack)[0][0]
     if isinstance(window, (str, bytes)) or not hasattr(window, "__len__") or len(window) != 2:
         raise PecletArgumentError("window", "(y0, y1) in D with y1 > y0", window)
     y0 = check_float("window[0]", window[0])
@@ -166,46 +309,105 @@ def pack_domain(pack, resolution, window=None, y_mode="wrap"):
     ny = 2 * ny_half if y_mode == "mirror" else ny_half
     b = pack.builder()
     pos = pack.positions.copy()
-    pos[:, 0] = np.mod(pos[:, 0], Lx)
-    pos[:, 2] = np.mod(pos[:, 2], Lz)
+    if not column:
+        pos[:, 0] = np.mod(pos[:, 0], Lx)
+        pos[:, 2] = np.mod(pos[:, 2], Lz)
     for p, q in zip(pos, pack.quaternions):
         b.add_instance(pack.home_root, translation=p, rotation=q)
     big = 1e6
     box = ((0.0, -big, 0.0), (Lx, big, Lz))
+    if column:
+        # the container's own side wall (solid where phi < 0), reaching well past the window
+        wb, wroot = container.solid_walls(y1 + 2.0 * R + 4.0)[-1]
 
-    def phi(points):
-        pts = np.array(points, dtype=np.float64, copy=True)
-        if y_mode == "mirror":
-            t = np.mod(pts[:, 1] - y0, 2.0 * H)
-            pts[:, 1] = y0 + np.where(t <= H, t, 2.0 * H - t)
-        elif y_mode == "wrap":
-            pts[:, 1] = y0 + np.mod(pts[:, 1] - y0, H)
-        return b.eval_scene(pts, box=box, periodic=(True, False, True))
-
-    grid = Grid(origin=(0.5 * h, y0 + 0.5 * h, 0.5 * h), h=h, dims=(nx, ny, nz),
-                periodic=(True, y_mode != "open", True))
+        def phi(points):
+            pts = _wrap_y(np.array(points, dtype=np.float64, copy=True), y0, H, y_mode)
+            return np.minimum(b.eval_scene(pts), wb.eval_root(wroot, pts))
+        origin = (cx - 0.5 * (nlat - 1) * h, y0 + 0.5 * h, cz - 0.5 * (nlat - 1) * h)
+    else:
+        def phi(points):
+            pts = _wrap_y(np.array(points, dtype=np.float64, copy=True), y0, H, y_mode)
+            return b.eval_scene(pts, box=box, periodic=(True, False, True))
+        origin = (0.5 * h, y0 + 0.5 * h, 0.5 * h)
+    grid = Grid(origin=origin, h=h, dims=(nx, ny, nz),
+                periodic=(not column, y_mode != "open", not column))
     info = {"window": [y0, y0 + H], "y_mode": y_mode, "h_D": h, "dims": [nx, ny, nz],
-            "box": [Lx, Lz]}
+            "box": [Lx, Lz], "container": "column" if column else "box"}
+    if column:
+        info.update({"column_diameter_D": 2.0 * R, "axis_xz": [float(cx), float(cz)]})
     return grid, phi, info
+
+
+def seam_fit(flow, info, margin):
+    """The fluid-averaged pressure of each lattice plane normal to y (p = rho c_s^2, lattice
+    units), fitted by a line over the planes more than ``margin`` (D) from the wrapped
+    window's seam (y0 = y1). Returns {"slope" (pressure per cell), "slope_se" (its standard
+    error), "planes" (used), "planes_total"}; slope NaN with fewer than 4 planes."""
+    geo = flow.geometry
+    ny = geo.grid.dims[1]
+    h = geo.grid.h
+    j = geo.ijk[:, 1]
+    cnt = np.bincount(j, minlength=ny).astype(np.float64)
+    p = np.bincount(j, weights=flow.rho, minlength=ny) / np.maximum(cnt, 1.0) / 3.0
+    js = np.arange(ny)
+    dist = h * np.minimum(js + 0.5, ny - 0.5 - js)
+    use = (dist >= margin) & (cnt > 0)
+    out = {"planes": int(use.sum()), "planes_total": int(ny), "slope": math.nan,
+           "slope_se": math.nan}
+    if use.sum() < 4:
+        return out
+    x = js[use].astype(np.float64)
+    y = p[use]
+    A = np.column_stack([np.ones_like(x), x - x.mean()])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    res = y - A @ coef
+    se = math.sqrt(float(res @ res) / (len(x) - 2) / float(((x - x.mean()) ** 2).sum()))
+    out.update(slope=float(coef[1]), slope_se=se)
+    return out
+
+
+def eisfeld_schnitzlein(U, eps, d_p, D_t, mu, rho=1.0, constants=ES_SPHERES):
+    """dP/L of Eisfeld & Schnitzlein's (2001) wall-corrected Ergun equation (module
+    docstring) at superficial velocity U for voidage eps, particle diameter d_p, column
+    diameter D_t, viscosity mu and density rho (any consistent units). Returns
+    (dP/L, A_w, B_w)."""
+    K1, k1, k2 = constants
+    A_w = 1.0 + 2.0 / (3.0 * (D_t / d_p) * (1.0 - eps))
+    B_w = (k1 * (d_p / D_t) ** 2 + k2) ** 2
+    visc = K1 * A_w ** 2 * (1.0 - eps) ** 2 / eps ** 3 * mu * U / d_p ** 2
+    inert = A_w / B_w * (1.0 - eps) / eps ** 3 * rho * U * U / d_p
+    return visc + inert, A_w, B_w
 
 
 def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1.0 / 6.0,
                  magic=MAGIC_DEFAULT, scheme="linear", tol=1e-6, max_steps=100_000, Re=0.01,
-                 progress=None, samples=8, area_n=160, mass="local"):
+                 progress=None, samples=8, area_n=160, mass="local", container=None,
+                 seam_margin=1.0, balance_tol=None):
     """The flow through ``pack`` (a :class:`~peclet.packing.freeze.Pack` or a path to one).
 
     resolution: cells per D (>= 4; a warning (:class:`ThinWallWarning`) names the thinnest
-    wall when it gets fewer than 4 cells). axis: "x", "y" (the bed's axis, default) or "z".
-    Re: the target Reynolds number U D / nu of the run (the force is set from an estimate of
-    k and then reported as run; 0.01 keeps inertia out of a Darcy permeability). Other
-    arguments: see :func:`pack_domain` and :func:`peclet.flow.solver.solve`. Returns a
-    :class:`PackFlow`.
+    wall when it gets fewer than 4 cells). axis: "x", "y" (the bed's axis, default) or "z"
+    (a column: "y" only). Re: the target Reynolds number U D / nu of the run (the force is set
+    from an estimate of k and then reported as run; 0.01 keeps inertia out of a Darcy
+    permeability). container: see :func:`pack_container` (None reads the one ``peclet pack``
+    recorded beside the pack file). seam_margin: distance (D, >= 0) from a wrapped window's
+    seam beyond which the pressure is fitted (module docstring). balance_tol: see
+    :func:`peclet.flow.solver.solve`. Other arguments: see :func:`pack_domain` and
+    :func:`peclet.flow.solver.solve`. Returns a :class:`PackFlow`.
     """
     from peclet.packing.freeze import Pack, load_pack
     pk = pack if isinstance(pack, Pack) else load_pack(pack)
     ax = _AXIS[check_choice("axis", axis, tuple(_AXIS))]
     Re = check_float("Re", Re, 0.0, 10.0, lo_open=True)
-    grid, phi, info = pack_domain(pk, resolution, window, y_mode)
+    seam_margin = check_float("seam_margin", seam_margin, 0.0)
+    cont, source = pack_container(pack, container)
+    if cont is not None:
+        _check_column_holds(pk, cont)
+        if axis != "y":
+            raise PecletArgumentError("axis", "y (a column section: the flow runs along the "
+                                      "column's axis; its wall closes x and z)", axis)
+    grid, phi, info = pack_domain(pk, resolution, window, y_mode, cont)
+    info["container_source"] = source
     t_wall, wall_name = thinnest_wall(pk)
     res = float(resolution)
     if t_wall * res < 4.0:
@@ -216,7 +418,24 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
         info["thin_wall_warning"] = msg
     geo = build_geometry(grid, phi, samples=samples,
                          seams=(False, info["y_mode"] == "wrap", False))
-    eps = geo.porosity
+    nx, ny, nz = grid.dims
+    if cont is not None:
+        # the column's own cross-section: its area exactly, its nodes for the porosity
+        R_lu = float(cont.radius) / grid.h
+        area_lu = math.pi * R_lu * R_lu
+        lat = np.arange(nx) - 0.5 * (nx - 1)
+        r2 = lat[:, None] ** 2 + lat[None, :] ** 2
+        inside_nodes = int(np.count_nonzero(r2 < R_lu * R_lu)) * ny
+        eps = geo.n_fluid / inside_nodes
+        core = r2 < (R_lu - res) ** 2
+        core_cells = np.zeros(nx * nz, bool)
+        core_cells[(core.T).reshape(-1)] = True      # flat index x + nx z (square lattice)
+        fl = geo.ijk[:, 0] + nx * geo.ijk[:, 2]
+        n_core = int(core.sum()) * ny
+        eps_core = float(np.count_nonzero(core_cells[fl]) / n_core) if n_core else math.nan
+    else:
+        area_lu = float(nx * nz)
+        eps = geo.porosity
     d_s, d_env = _diameters(pk, area_n)
     # the force from a Carman-Kozeny guess of k, so the run sits near the requested Re
     k_guess = max(eps ** 3 * d_s ** 2 / (180.0 * max(1.0 - eps, 1e-3) ** 2), 1e-6) * res ** 2
@@ -225,32 +444,78 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
     F = np.zeros(3)
     F[ax] = g
     fr = solve(geo, F, nu=nu, magic=magic, scheme=scheme, tol=tol, max_steps=max_steps,
-               progress=progress, mass=mass)
-    U = float(fr.U[ax])
+               progress=progress, mass=mass, balance_tol=balance_tol)
+    # superficial velocity: the flux through a lattice plane over the cross-section
+    U = float(fr.U[ax]) * (grid.n_cells / grid.dims[ax]) / (area_lu if ax == 1 else
+                                                             grid.n_cells / grid.dims[ax])
     if not U > 0.0:
         raise FloatingPointError(f"no flow along {axis}: U = {U}")
-    k_lu = nu * U / g
+    k_period = nu * U / g
+    drive = g
+    seam = None
+    if info["y_mode"] == "wrap" and ax == 1:
+        seam = seam_fit(fr, info, seam_margin)
+        info.update({"seam_margin_D": seam_margin, "seam_planes": seam["planes"],
+                     "seam_share": seam["slope"] / g,
+                     "seam_share_se": seam["slope_se"] / g,
+                     "k_D2_seam_free": nu * U / (g - seam["slope"]) / res ** 2})
+        if cont is not None and math.isfinite(seam["slope"]):
+            drive = g - seam["slope"]
+    info["dpdl_source"] = ("body force minus the pressure slope away from the seam"
+                           if drive != g else "body force (whole period)")
+    k_lu = nu * U / drive
     k_D2 = k_lu / res ** 2
-    drag, inside = _element_drag(pk, fr, grid, ax, info)
+    drag, inside, wall_drag = _element_drag(pk, fr, grid, ax, info, cont)
     total = float(fr.link_force[:, ax].sum())
-    kozeny = eps ** 3 * d_s ** 2 / (36.0 * k_D2 * (1.0 - eps) ** 2)
-    ergun = lambda d, e: e ** 3 * d ** 2 / (150.0 * k_D2 * (1.0 - e) ** 2)
+    solid = eps < 1.0        # an empty section (a pipe) has no Kozeny or Ergun figures
+    kozeny = eps ** 3 * d_s ** 2 / (36.0 * k_D2 * (1.0 - eps) ** 2) if solid else math.nan
+    ergun = lambda d, e: e ** 3 * d ** 2 / (150.0 * k_D2 * (1.0 - e) ** 2) if e < 1.0 \
+        else math.nan
     eps_env = math.nan
     if np.isfinite(d_env):
-        from peclet.packing.analysis import PackGeometry, cover_fractions
-        eps_env = 1.0 - cover_fractions(PackGeometry(pk), info["window"], 200_000)["f_env"]
+        eps_env = _envelope_voidage(pk, info["window"], cont)
     sel = drag[inside] if inside.any() else drag
     info.update({"eps_envelope": eps_env, "axis": axis, "nu": nu, "magic": magic,
-                 "scheme": scheme, "force": g,
+                 "scheme": scheme, "force": g, "k_D2_period": k_period / res ** 2,
+                 "dpdl_lattice_period": g,
                  "thinnest_wall_D": t_wall, "thinnest_wall": wall_name,
-                 "elements_inside": int(inside.sum())})
-    return PackFlow(resolution=res, k_D2=k_D2, k_lattice=k_lu, dpdl_lattice=g,
+                 "elements_inside": int(inside.sum()), "U_lattice": U})
+    if cont is not None:
+        d_v = (6.0 * float(pk.ring_volume) / math.pi) ** (1.0 / 3.0)
+        D_t = 2.0 * float(cont.radius)
+        es, A_w, B_w = eisfeld_schnitzlein(U, eps, d_v * res, D_t * res, nu) if solid \
+            else (math.nan, math.nan, math.nan)
+        info.update({"D_t_over_d_p": D_t / d_v, "d_p_volume": d_v, "A_w": A_w, "B_w": B_w,
+                     "ergun_wall_ratio": drive / es,
+                     "ergun_ratio_volume": ergun(d_v, eps),
+                     "wall_drag_share": wall_drag / total if total else math.nan,
+                     "eps_core": eps_core, "porosity_nodes": "fluid nodes / nodes inside the "
+                     "wall (near-wall region included)"})
+    return PackFlow(resolution=res, k_D2=k_D2, k_lattice=k_lu, dpdl_lattice=drive,
                     Re=U * res / nu, eps=eps, d_sauter=d_s, d_envelope=d_env, kozeny=kozeny,
                     ergun_ratio_sauter=ergun(d_s, eps),
                     ergun_ratio_envelope=ergun(d_env, eps_env) if np.isfinite(d_env)
                     else math.nan,
-                    drag=drag, drag_cv=float(np.std(sel) / np.mean(sel)),
+                    drag=drag, drag_cv=float(np.std(sel) / np.mean(sel)) if np.mean(sel) != 0
+                    else math.nan,
                     solid_drag_balance=total / (g * geo.n_fluid), flow=fr, info=info)
+
+
+def _envelope_voidage(pk, window, cont, n=200_000, seed=0):
+    """1 - (fraction of the window inside an element's envelope), Monte Carlo: the periodic
+    box window (peclet.packing.analysis.cover_fractions) or, in a column, uniform points
+    in the cylinder over the window."""
+    from peclet.packing.analysis import PackGeometry, cover_fractions
+    if cont is None:
+        return 1.0 - cover_fractions(PackGeometry(pk), window, n)["f_env"]
+    rng = np.random.default_rng(seed)
+    R = float(cont.radius)
+    cx, cz = cont.center_xz
+    r = R * np.sqrt(rng.uniform(0.0, 1.0, n))
+    t = rng.uniform(0.0, 2.0 * math.pi, n)
+    pts = np.column_stack([cx + r * np.cos(t), rng.uniform(window[0], window[1], n),
+                           cz + r * np.sin(t)])
+    return 1.0 - float(np.mean(PackGeometry(pk).cover(pts)[1]))
 
 
 def _diameters(pack, n):
@@ -265,29 +530,31 @@ def _diameters(pack, n):
     return d_s, d_env
 
 
-def _element_drag(pack, fr, grid, ax, info):
-    """Drag along ``ax`` on each element: each cut link's momentum goes to the element whose
-    tree is lowest at the link's wall point (mapped back into the window), summed in link
-    order. Returns (drag (N,), inside (N,) bool: bounding sphere wholly inside the window)."""
+def _element_drag(pack, fr, grid, ax, info, cont=None):
+    """Drag along ``ax`` on each element: each cut link's momentum goes to the body whose
+    field is lowest at the link's wall point (mapped back into the window): an element, or
+    in a column its wall; summed in link order. Returns (drag (N,), inside (N,) bool: bounding
+    sphere wholly inside the window, the wall's drag), relative to the mean pressure."""
     geo = fr.geometry
     pts = geo.wall_points()
     y0, y1 = info["window"]
     H = y1 - y0
-    if info["y_mode"] == "mirror":
-        t = np.mod(pts[:, 1] - y0, 2.0 * H)
-        pts[:, 1] = y0 + np.where(t <= H, t, 2.0 * H - t)
-    else:
-        pts[:, 1] = y0 + np.mod(pts[:, 1] - y0, H)
+    pts = _wrap_y(pts, y0, H, info["y_mode"] if info["y_mode"] != "open" else "wrap")
     Lx, Lz = info["box"]
     b = pack.builder()
     R = pack.rotations()
     best = np.full(len(pts), np.inf)
     owner = np.full(len(pts), -1, np.int64)
+    if cont is not None:
+        cx, cz = cont.center_xz
+        best = float(cont.radius) - np.hypot(pts[:, 0] - cx, pts[:, 2] - cz)
+        owner[:] = -2
     rb = float(pack.bounding_radius) + 2.0 * grid.h
+    shifts = (-1, 0, 1) if cont is None else (0,)
     for e in range(pack.n):
         c0 = pack.positions[e]
-        for sx in (-1, 0, 1):
-            for sz in (-1, 0, 1):
+        for sx in shifts:
+            for sz in shifts:
                 c = c0 + np.array([sx * Lx, 0.0, sz * Lz])
                 d = pts - c
                 near = np.flatnonzero((d * d).sum(1) <= rb * rb)
@@ -298,12 +565,20 @@ def _element_drag(pack, fr, grid, ax, info):
                 best[near[better]] = v[better]
                 owner[near[better]] = e
     drag = np.zeros(pack.n)
-    f = fr.link_force[:, ax]
+    # the momentum exchange less its part at rest (rho0 = 1): -c_i (f*_o + f_i - 2 w_i). The
+    # uniform pressure's force on a body vanishes only over a closed wetted surface; where
+    # bodies touch (or touch the wall) the lattice lines run from one into the other without
+    # a fluid node between, and the rest part, 2 w_i per link (10^4 times a link's drag at
+    # Re 0.01), would be handed from body to body. Its sum over all bodies is zero (every
+    # lattice line leaves the solid as often as it enters), so the total is unchanged.
+    i = geo.link_dir
+    f = fr.link_force[:, ax] + 2.0 * W[i] * C[i, ax]
     ok = owner >= 0
     np.add.at(drag, owner[ok], f[ok])
+    wall = float(f[owner == -2].sum())
     ys = pack.positions[:, 1]
     inside = (ys - pack.bounding_radius >= y0) & (ys + pack.bounding_radius <= y1)
-    return drag, inside
+    return drag, inside, wall
 
 
 def richardson(h, k):
