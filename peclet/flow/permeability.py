@@ -83,7 +83,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
+from peclet.core.validation import PecletArgumentError, check_choice, check_float
 
 from .geometry import Grid, build_geometry
 from .lattice import C, MAGIC_DEFAULT, W
