@@ -316,8 +316,10 @@ PARALLEL_ROTATION_MIN = 50000
 def _advance_serial(quats, omegas, inv_inertia, dt):
     for i in range(quats.shape[0]):
         qn, wn = advance_rotation(quats[i], omegas[i], inv_inertia[i], dt)
-        quats[i, :] = qn
-        omegas[i, :] = wn
+        for k in range(4):          # element copies: a slice assignment compiles a
+            quats[i, k] = qn[k]     # shape-mismatch message (seconds of a cold start)
+        for k in range(3):
+            omegas[i, k] = wn[k]
 
 
 def advance_all(quats, omegas, inv_inertia, dt):

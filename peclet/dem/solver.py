@@ -282,7 +282,9 @@ def project_positions(con, gap_end, inv_mass, invI, slop, iterations, pos, quats
             dq[1] = dth[j, 1] * s
             dq[2] = dth[j, 2] * s
             dq[3] = math.cos(0.5 * ang)
-            quats[j, :] = quat_normalize(quat_multiply(dq, quats[j]))
+            qn = quat_normalize(quat_multiply(dq, quats[j]))
+            for k in range(4):      # element copies (see rigid._advance_serial)
+                quats[j, k] = qn[k]
 
 
 @njit(cache=True)
@@ -291,5 +293,8 @@ def world_inv_inertias(quats, inv_inertia):
     n = quats.shape[0]
     out = np.empty((n, 3, 3))
     for k in range(n):
-        out[k] = world_inv_inertia(quats[k], inv_inertia[k])
+        m = world_inv_inertia(quats[k], inv_inertia[k])
+        for a in range(3):          # element copies (see rigid._advance_serial)
+            for b in range(3):
+                out[k, a, b] = m[a, b]
     return out

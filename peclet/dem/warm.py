@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-__all__ = ["compile_step_kernels", "start_background", "finish", "PARTS"]
+__all__ = ["compile_step_kernels", "start_background", "running", "finish", "PARTS"]
 
 #: what a child compiles: "all" (a whole step: detection first, then the rest, which it loads
 #: from the cache when the "tail" child has written it by then) or "tail" (the step after
@@ -95,6 +95,11 @@ def start_background():
                               f"compile_step_kernels({part!r})"],
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             for part in ("tail", "all")]
+
+
+def running(children):
+    """Whether any of :func:`start_background`'s children (None: none) is still compiling."""
+    return children is not None and any(child.poll() is None for child in children)
 
 
 def finish(children):

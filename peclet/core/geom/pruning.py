@@ -26,8 +26,6 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from numba import types as nbt
-from numba.typed import Dict
 
 from peclet.core.validation import PecletArgumentError, check_array, check_float, check_int
 
@@ -147,6 +145,17 @@ def _hash_rows(rows, n):
 
 
 @njit(cache=True)
+def _seen_slot(keys, vals, h):
+    """The slot of hash ``h`` in the open-addressing table (keys, vals; vals -2: empty): where
+    it is, or the empty slot where it goes (linear probing; the table is never full)."""
+    mask = keys.shape[0] - 1
+    i = (h ^ (h >> 31)) & mask
+    while vals[i] != -2 and keys[i] != h:
+        i = (i + 1) & mask
+    return i
+
+
+@njit(cache=True)
 def _same_rows(out, begin, end, rows, n):
     if end - begin != n:
         return False
@@ -231,9 +240,16 @@ def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims
         out[i, 0] = ops[op_begin + i, 0]
         out[i, 1] = ops[op_begin + i, 1]
     n_out = nfull
-    # identical programs share rows: hash -> first block with it (-1: the full program)
-    seen = Dict.empty(nbt.int64, nbt.int64)
-    seen[_hash_rows(out, nfull)] = -1
+    # identical programs share rows: hash -> first block with it (-1: the full program), an
+    # open-addressing table in two arrays (a typed Dict costs seconds of compilation)
+    size = 1
+    while size < 2 * (nx * ny * nz + 1):
+        size *= 2
+    seen_key = np.zeros(size, np.int64)
+    seen_val = np.full(size, np.int64(-2))
+    k = _seen_slot(seen_key, seen_val, _hash_rows(out, nfull))
+    seen_key[k] = _hash_rows(out, nfull)
+    seen_val[k] = -1
     rows = np.empty((nfull, 2), np.int32)
     lo = np.empty(nfull)
     hi = np.empty(nfull)
@@ -251,7 +267,8 @@ def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims
                 n = _prune_block(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, cx, cy,
                                  cz, rho, tol0, rows, lo, hi, start, st)
                 h = _hash_rows(rows, n)
-                first = seen[h] if h in seen else np.int64(-2)
+                slot = _seen_slot(seen_key, seen_val, h)
+                first = seen_val[slot]                  # -2: not seen
                 if first == -1 and _same_rows(out, 0, nfull, rows, n):
                     block_range[b, 0] = 0
                     block_range[b, 1] = nfull
@@ -263,7 +280,9 @@ def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims
                     if n_out + n > cap:
                         cap = 2 * (n_out + n)
                         grown = np.empty((cap, 2), np.int32)
-                        grown[:n_out] = out[:n_out]
+                        for i in range(n_out):
+                            grown[i, 0] = out[i, 0]
+                            grown[i, 1] = out[i, 1]
                         out = grown
                     for i in range(n):
                         out[n_out + i, 0] = rows[i, 0]
@@ -272,7 +291,8 @@ def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims
                     block_range[b, 1] = n_out + n
                     n_out += n
                     if first == -2:
-                        seen[h] = b
+                        seen_key[slot] = h
+                        seen_val[slot] = b
                 b += 1
     return out[:n_out].copy(), block_range
 

@@ -149,7 +149,10 @@ def quats_to_matrices(quats):
     n = quats.shape[0]
     out = np.empty((n, 3, 3))
     for i in range(n):
-        out[i] = quat_to_matrix(quats[i])
+        R = quat_to_matrix(quats[i])
+        for a in range(3):          # element copies: a slice assignment compiles a
+            for b in range(3):      # shape-mismatch message (seconds of a cold start)
+                out[i, a, b] = R[a, b]
     return out
 
 

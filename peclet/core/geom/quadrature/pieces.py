@@ -156,7 +156,8 @@ def keep_seeds(seeds, nseed, piece, S, row, n):
 def sorted_seeds(seeds, nseed, piece, S, row):
     """The seeds of u-piece ``piece``, sorted, into S[row]; returns their count."""
     n = nseed[piece]
-    S[row, :n] = seeds[piece, :n]
+    for k in range(n):      # element copies: a slice assignment compiles a shape-mismatch
+        S[row, k] = seeds[piece, k]     # message (seconds of a cold start)
     sort_prefix(S[row], n)
     return n
 
