@@ -85,8 +85,25 @@ def add_parser(sub):
 def run(args):
     """Convert and check every option (:func:`peclet.packing.pipeline_checks.check_run`, with
     the options' names) before anything is built or written, then run the page."""
+    from peclet.dem import warm
     from peclet.packing import pipeline, pipeline_checks
 
+    # a cold cache: the DEM kernels start compiling now, beside the checks' own compilation
+    # (the run finds them started); a refusal stops them
+    warming = warm.start_background()
+    try:
+        flow, kw = _checked(args, pipeline, pipeline_checks)
+    except BaseException:
+        warm.stop(warming)
+        raise
+    res = pipeline.run(**kw, progress=not args.quiet, write_figures=not args.no_figures,
+                       animation=args.animation, flow=flow)
+    print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
+    return 0
+
+
+def _checked(args, pipeline, pipeline_checks):
+    # (flow resolution or None, the run's keyword arguments), every option checked
     kw = dict(out=args.out, rings=_as("--rings", args.rings, int),
               seed=_as("--seed", args.seed, int), threads=_as("--threads", args.threads, int),
               steps_scale=_as("--steps-scale", args.steps_scale, float),
@@ -107,7 +124,4 @@ def run(args):
                                    kw["box"], "--flow-resolution")
     if kw["threads"] is not None:
         pipeline.set_threads(kw["threads"], "--threads")
-    res = pipeline.run(**kw, progress=not args.quiet, write_figures=not args.no_figures,
-                       animation=args.animation, flow=flow)
-    print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
-    return 0
+    return flow, kw

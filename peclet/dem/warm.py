@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-__all__ = ["compile_step_kernels", "start_background", "running", "finish", "PARTS"]
+__all__ = ["compile_step_kernels", "start_background", "running", "finish", "stop", "PARTS"]
 
 #: what a child compiles: "all" (a whole step: detection first, then the rest, which it loads
 #: from the cache when the "tail" child has written it by then) or "tail" (the step after
@@ -82,19 +82,38 @@ def compile_step_kernels(part="all"):
     return sim
 
 
+#: the children this process started (None: none yet, or they were collected)
+_started = None
+
+
 def start_background():
     """Children compiling the step's kernels (the detection in one, the rest in the other),
-    or None when they are cached already (or the cache cannot be read)."""
+    or None when they are cached already (or the cache cannot be read). A second call while
+    this process's children are still running returns the same children (a command can start
+    them before its own checks, and the run it then calls finds them started)."""
+    global _started
+    if _started is not None and running(_started):
+        return _started
     from peclet.dem.simulation import step_kernels_cached
 
     if step_kernels_cached() is not False:
         return None
     # the tail first: it is short, and the detection child loads it when it gets there
-    return [subprocess.Popen([sys.executable, "-c",
-                              "from peclet.dem.warm import compile_step_kernels; "
-                              f"compile_step_kernels({part!r})"],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            for part in ("tail", "all")]
+    _started = [subprocess.Popen([sys.executable, "-c",
+                                  "from peclet.dem.warm import compile_step_kernels; "
+                                  f"compile_step_kernels({part!r})"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                for part in ("tail", "all")]
+    return _started
+
+
+def stop(children):
+    """Kill :func:`start_background`'s children (a command that refuses its input does not
+    leave them compiling); None: nothing to do."""
+    for child in children or ():
+        if child.poll() is None:
+            child.kill()
+        child.wait()
 
 
 def running(children):
