@@ -127,12 +127,12 @@ class Detector:
         if keep is not None and keep[0] == margin and len(keep[1]) == n:
             x_ref, big, found = keep[1], keep[2], keep[3]
             d = pos - x_ref
-            if domain.periodic.any():
+            if domain.any_periodic:
                 d = np.where(domain.periodic, d - box * np.floor(d / box + 0.5), d)
             moved = np.sqrt((d ** 2).sum(axis=1))
             # the test keeps a relative 1e-9 in hand against round-off in the distances
             if bool(np.all(grown + moved <= big * (1.0 - 1e-9))):
-                if not domain.periodic.any():
+                if not domain.any_periodic:
                     return found
                 return found[0], found[1], broadphase.image_shifts(found[0], found[1], pos,
                                                                    box, domain.periodic)

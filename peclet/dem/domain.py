@@ -18,6 +18,17 @@ class Domain:
         self.hi = None
         self.periodic = np.zeros(3, np.bool_)
 
+    @property
+    def periodic(self):
+        """(3,) bools: which axes are periodic (set through :meth:`set_periodic`)."""
+        return self._periodic
+
+    @periodic.setter
+    def periodic(self, value):
+        self._periodic = np.asarray(value, np.bool_)
+        #: whether any axis is periodic (a step asks several times)
+        self.any_periodic = bool(self._periodic.any())
+
     def set_box(self, lo, hi):
         lo = check_array("lo", lo, (3,))
         hi = check_array("hi", hi, (3,))
@@ -31,7 +42,7 @@ class Domain:
                                   check_bool("pz", pz)], np.bool_)
 
     def check_ready(self):
-        if self.periodic.any() and self.lo is None:
+        if self.any_periodic and self.lo is None:
             raise PecletArgumentError("periodic axes", "used with a domain: call "
                                       "set_domain(lo, hi) first", self.periodic.tolist())
 
@@ -46,7 +57,7 @@ class Domain:
 
     def wrap(self, pos):
         """Move ``pos`` (N, 3) into [lo, hi) along every periodic axis, in place; returns it."""
-        if self.periodic.any():
+        if self.any_periodic:
             wrap_into(pos, self.lo, self.hi, self.periodic)
         return pos
 

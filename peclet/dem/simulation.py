@@ -500,6 +500,7 @@ class Simulation:
 
     # ------------------------------------------------------------------ contacts
     def _check_ready(self):
+        # raises when the simulation cannot step; returns whether per-pair materials are in use
         b = self._bodies
         if b.n:
             self._need_shapes()
@@ -509,8 +510,10 @@ class Simulation:
         self._domain.check_ready()
         self._sync_material_ids()
         self._check_loads()
-        if self._materials.active():
+        active = self._materials.active()
+        if active:
             self._materials.check_declared(b.n, self._material)
+        return active
 
     def _margins(self, vel, omega, dt, pos=None, radii=None, moving=None):
         """(base, reach (N,) or None, wall_reach (N, W) or None) for :meth:`_detect`: each
@@ -590,7 +593,7 @@ class Simulation:
         the largest side of :meth:`set_domain`, else of the particles' bounding box plus two
         bounding radii)."""
         dt = self._resolve_dt(dt)
-        self._check_ready()
+        materials = self._check_ready()         # whether per-pair materials are in use
         if self._bodies.n == 0:
             self._step_count += 1
             self._time += dt
@@ -623,7 +626,7 @@ class Simulation:
         t1 = time.perf_counter()
         keys = WarmStart.keys_of(c, len(self._walls))
         t1v, t2v = solver.tangent_basis(c.normal)
-        if self._materials.active():
+        if materials:
             e_c, beta_c, mu_c = self._materials.per_contact(c.a, c.b, self._material,
                                                             self._geometry())
         else:
