@@ -73,19 +73,25 @@ def _column(seed=3):
     return spec, col, sim
 
 
+def _count_builds(monkeypatch):
+    # [n]: how many times the broad phase builds its pair list from here on
+    builds = [0]
+    real = broadphase.pairs
+
+    def counted(*a):
+        builds[0] += 1
+        return real(*a)
+
+    monkeypatch.setattr(broadphase, "pairs", counted)
+    return builds
+
+
 def _stir_hash(steps, *, skin=True, wall_grids=True, threads=1, monkeypatch=None):
     numba.set_num_threads(threads)
     try:
         spec, col, sim = _column()
         det = sim._detector
-        builds = [0]
-        real = broadphase.pairs
-
-        def counted(*a):
-            builds[0] += 1
-            return real(*a)
-
-        monkeypatch.setattr(broadphase, "pairs", counted)
+        builds = _count_builds(monkeypatch)
         monkeypatch.setattr(distgrid, "WALL_GRID_MIN_TASKS", 1000 if wall_grids else 10 ** 12)
         for k in range(steps):
             if k == steps // 3:
@@ -202,14 +208,7 @@ def _periodic_rain_hash(steps, skin, threads, monkeypatch):
         rng = np.random.default_rng(2)
         vel = rng.normal(size=(len(pos), 3)) * 0.5 + [6.0, 0.0, -4.0]
         _spheres(sim, pos, r=0.4, vel=vel)
-        builds = [0]
-        real = broadphase.pairs
-
-        def counted(*a):
-            builds[0] += 1
-            return real(*a)
-
-        monkeypatch.setattr(broadphase, "pairs", counted)
+        builds = _count_builds(monkeypatch)
         wraps = 0
         for _ in range(steps):
             if not skin:
@@ -235,7 +234,6 @@ def test_a_kept_pair_list_on_periodic_axes_changes_no_bit(monkeypatch):
 
 def test_kept_image_shifts_are_the_broad_phases_own():
     rng = np.random.default_rng(9)
-    box = np.array([3.5, 1.0, 3.5])
     per = np.array([True, False, True])
     pos = rng.uniform(-1.75, 1.75, size=(60, 3))
     lo, cell, dims, bx = broadphase.grid_for(pos, 1.2, np.array([-1.75, 0.0, -1.75]),

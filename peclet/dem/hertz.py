@@ -186,30 +186,32 @@ _CAL_STEP = 2e-5
 # --------------------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _rhs(x, u, g):
-    # overlap x, approach speed u: x' = u, u' = -max(0, x^1.5 + g x^0.25 u)
+def _rhs(x, u, g, linear):
+    # overlap x, approach speed u: x' = u, u' = -max(0, x^1.5 + g x^0.25 u) (Hertz), or
+    # u' = -max(0, x + g u) (linear: the distributed contact's calibration)
     if x <= 0.0:
         return 0.0
-    f = x ** 1.5 + g * x ** 0.25 * u
+    f = x + g * u if linear else x ** 1.5 + g * x ** 0.25 * u
     return -f if f > 0.0 else 0.0
 
 
 @njit(cache=True)
-def rebound_speed(g, h):
-    """Rebound speed of the dimensionless damped Hertz impact (approach speed 1) with the
-    coefficient ``g`` (= sqrt(3/2) gamma) in front of ``x^(1/4) x'``, by RK4 of step ``h``;
-    the exit is interpolated linearly in the last step."""
+def rebound_speed(g, h, linear):
+    """Rebound speed of the dimensionless damped impact (approach speed 1) with the
+    coefficient ``g`` of the damping term (Hertz: ``g`` = sqrt(3/2) gamma in front of
+    ``x^(1/4) x'``; ``linear``: in front of ``x'`` of ``x'' = -max(0, x + g x')``), by RK4 of
+    step ``h``; the exit is interpolated linearly in the last step."""
     x = 0.0
     u = 1.0
     for _ in range(100_000_000):
         k1x = u
-        k1u = _rhs(x, u, g)
+        k1u = _rhs(x, u, g, linear)
         k2x = u + 0.5 * h * k1u
-        k2u = _rhs(x + 0.5 * h * k1x, u + 0.5 * h * k1u, g)
+        k2u = _rhs(x + 0.5 * h * k1x, u + 0.5 * h * k1u, g, linear)
         k3x = u + 0.5 * h * k2u
-        k3u = _rhs(x + 0.5 * h * k2x, u + 0.5 * h * k2u, g)
+        k3u = _rhs(x + 0.5 * h * k2x, u + 0.5 * h * k2u, g, linear)
         k4x = u + h * k3u
-        k4u = _rhs(x + h * k3x, u + h * k3u, g)
+        k4u = _rhs(x + h * k3x, u + h * k3u, g, linear)
         xn = x + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
         un = u + h / 6.0 * (k1u + 2.0 * k2u + 2.0 * k3u + k4u)
         if xn <= 0.0 and un < 0.0:
@@ -220,7 +222,7 @@ def rebound_speed(g, h):
 
 
 def _restitution(gamma):
-    return float(rebound_speed(math.sqrt(1.5) * gamma, _CAL_STEP))
+    return float(rebound_speed(math.sqrt(1.5) * gamma, _CAL_STEP, False))
 
 
 @lru_cache(maxsize=4096)
@@ -1649,38 +1651,6 @@ def distributed_geometry(a, b, shift, pos, rot, shape_of, geo, estar):
     return out, status
 
 
-@njit(cache=True)
-def _rhs_linear(x, u, g):
-    # the linear law's calibration: x' = u, u' = -max(0, x + g u)
-    if x <= 0.0:
-        return 0.0
-    f = x + g * u
-    return -f if f > 0.0 else 0.0
-
-
-@njit(cache=True)
-def rebound_speed_linear(g, h):
-    """:func:`rebound_speed` for the linear law ``x'' = -max(0, x + g x')``."""
-    x = 0.0
-    u = 1.0
-    for _ in range(100_000_000):
-        k1x = u
-        k1u = _rhs_linear(x, u, g)
-        k2x = u + 0.5 * h * k1u
-        k2u = _rhs_linear(x + 0.5 * h * k1x, u + 0.5 * h * k1u, g)
-        k3x = u + 0.5 * h * k2u
-        k3u = _rhs_linear(x + 0.5 * h * k2x, u + 0.5 * h * k2u, g)
-        k4x = u + h * k3u
-        k4u = _rhs_linear(x + h * k3x, u + h * k3u, g)
-        xn = x + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
-        un = u + h / 6.0 * (k1u + 2.0 * k2u + 2.0 * k3u + k4u)
-        if xn <= 0.0 and un < 0.0:
-            return -un
-        x = xn
-        u = un
-    return 0.0
-
-
 @lru_cache(maxsize=4096)
 def damping_gamma_linear(e):
     """:func:`damping_gamma` for a distributed contact: the ``gamma`` with which the clamped
@@ -1691,7 +1661,7 @@ def damping_gamma_linear(e):
     from scipy.optimize import brentq
 
     def rest(g):
-        return float(rebound_speed_linear(g, _CAL_STEP))
+        return float(rebound_speed(g, _CAL_STEP, True))
     hi = 1.0
     while rest(hi) > e:
         hi *= 2.0
