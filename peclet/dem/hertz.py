@@ -821,6 +821,20 @@ def _side(body, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, wall
 
 
 @njit(cache=True)
+def _sides(ia, ib, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, wall_op,
+           wall_sign, wall_pos, wall_rot, xa, xb):
+    """Both sides of the contact of ``ia`` with ``ib`` (b's image ``shift``): :func:`_side`'s
+    (kind, radius, rotation, program start, end) of a, then b's with its sign; the centres
+    written into ``xa`` and ``xb``."""
+    ka, rada, Ra, oa0, oa1, _ = _side(ia, np.zeros(3), pos, rot, shape_of, shape_kind,
+                                      shape_rad, shape_op, wall_op, wall_sign, wall_pos,
+                                      wall_rot, xa)
+    kb, radb, Rb, ob0, ob1, sb = _side(ib, shift, pos, rot, shape_of, shape_kind, shape_rad,
+                                       shape_op, wall_op, wall_sign, wall_pos, wall_rot, xb)
+    return ka, rada, Ra, oa0, oa1, kb, radb, Rb, ob0, ob1, sb
+
+
+@njit(cache=True)
 def _patch_one(i, a, b, shift, mode, u, pos, rot, shape_of, shape_kind, shape_rad, shape_op,
                wall_op, wall_sign, wall_pos, wall_rot, ops, lk, lr, ctab_t, ctab_c, point,
                normal, gap, rstar, radii2, unew, status):
@@ -831,13 +845,11 @@ def _patch_one(i, a, b, shift, mode, u, pos, rot, shape_of, shape_kind, shape_ra
     out = np.empty(10)
     xa = np.empty(3)
     xb = np.empty(3)
-    zero = np.zeros(3)
     ia = a[i]
     ib = b[i]
-    ka, rada, Ra, oa0, oa1, _ = _side(ia, zero, pos, rot, shape_of, shape_kind, shape_rad,
-                                      shape_op, wall_op, wall_sign, wall_pos, wall_rot, xa)
-    kb, radb, Rb, ob0, ob1, sb = _side(ib, shift[i], pos, rot, shape_of, shape_kind, shape_rad,
-                                       shape_op, wall_op, wall_sign, wall_pos, wall_rot, xb)
+    ka, rada, Ra, oa0, oa1, kb, radb, Rb, ob0, ob1, sb = _sides(
+        ia, ib, shift[i], pos, rot, shape_of, shape_kind, shape_rad, shape_op, wall_op, wall_sign,
+        wall_pos, wall_rot, xa, xb)
     scale = min(rada, radb)
     # the tracked point: in a's home frame (mode 0, 1) or b's (mode 2)
     xo, Ro = (xb, Rb) if mode[i] == 2 else (xa, Ra)
@@ -974,11 +986,9 @@ def _seed_pair(ia, ib, shift, det_pt, det_gap, margin, pos, rot, shape_of, shape
     out = np.empty(10)
     xa = np.empty(3)
     xb = np.empty(3)
-    zero = np.zeros(3)
-    ka, rada, Ra, oa0, oa1, _ = _side(ia, zero, pos, rot, shape_of, shape_kind, shape_rad,
-                                      shape_op, wall_op, wall_sign, wall_pos, wall_rot, xa)
-    kb, radb, Rb, ob0, ob1, sb = _side(ib, shift, pos, rot, shape_of, shape_kind, shape_rad,
-                                       shape_op, wall_op, wall_sign, wall_pos, wall_rot, xb)
+    ka, rada, Ra, oa0, oa1, kb, radb, Rb, ob0, ob1, sb = _sides(
+        ia, ib, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, wall_op, wall_sign,
+        wall_pos, wall_rot, xa, xb)
     scale = min(rada, radb)
     na_p = shape_np[shape_of[ia]] if ka == 1 else 0
     nb_p = shape_np[shape_of[ib]] if (ib >= 0 and kb == 1) else 0
@@ -1590,14 +1600,11 @@ def _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_o
     """Distributed contact i of :func:`distributed_geometry` (writes only row i)."""
     xa = np.empty(3)
     xb = np.empty(3)
-    zero = np.zeros(3)
     ia = a[i]
     ib = b[i]
-    ka, rada, Ra, oa0, oa1, _ = _side(ia, zero, pos, rot, shape_of, shape_kind, shape_rad,
-                                      shape_op, wall_op, wall_sign, wall_pos, wall_rot, xa)
-    kb, radb, Rb, ob0, ob1, sb = _side(ib, shift[i], pos, rot, shape_of, shape_kind,
-                                       shape_rad, shape_op, wall_op, wall_sign, wall_pos,
-                                       wall_rot, xb)
+    ka, rada, Ra, oa0, oa1, kb, radb, Rb, ob0, ob1, sb = _sides(
+        ia, ib, shift[i], pos, rot, shape_of, shape_kind, shape_rad, shape_op, wall_op, wall_sign,
+        wall_pos, wall_rot, xa, xb)
     pa0 = pa1 = pb0 = pb1 = 0
     if ka == 1:
         pa0 = shape_p0[shape_of[ia]]
