@@ -771,9 +771,10 @@ class Simulation:
 
     def _guard(self, x, q, v, w, limits=None):
         # limits: (radii, speed bound) when the caller has them (they do not change in a step)
-        radii, bound = limits if limits is not None else (
-            self._radii(), speed_bound(self._domain, self._bodies.pos, self._radii()))
-        check_state(x, q, v, w, radii, bound, self._step_count + 1)
+        if limits is None:
+            radii = self._radii()
+            limits = (radii, speed_bound(self._domain, self._bodies.pos, radii))
+        check_state(x, q, v, w, *limits, self._step_count + 1)
 
     # ------------------------------------------------------------------ persistence
     def save(self, path):
