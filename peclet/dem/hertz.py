@@ -2152,7 +2152,8 @@ def substep(sim, state, dt, skin_frac):
     if state.n_bodies != b.n:
         state.clear_history()
     inv_mass, inv_inertia, x, q, v, w = sim._working_state()
-    sim._guard(x, q, v, w)
+    limits = sim._guard_limits()        # fixed within the substep
+    sim._guard(x, q, v, w, limits)
     kept = (state.keys, state.xi, state.cand)
     try:
         cand = _candidates(sim, state, x, q, skin_frac, inv_mass)
@@ -2227,10 +2228,10 @@ def substep(sim, state, dt, skin_frac):
     wii = solver.world_inv_inertias(q, inv_inertia)
     with np.errstate(over="ignore", invalid="ignore"):   # the guard reports it
         kick_drift(x, v, w, fb, tb, inv_mass, np.ascontiguousarray(wii), sim._gravity, dt)
-    sim._guard(x, q, v, w)
+    sim._guard(x, q, v, w, limits)
     advance_all(q, w, inv_inertia, dt)
     sim._domain.wrap(x)
-    sim._guard(x, q, v, w)
+    sim._guard(x, q, v, w, limits)
     # commit
     b.pos, b.quat, b.vel, b.omega = x, q, v, w
     touching = c.gap < 0.0

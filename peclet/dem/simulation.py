@@ -602,8 +602,8 @@ class Simulation:
         inv_mass, inv_inertia, x, q, v, w = self._working_state()
         # what the step asks several times, once: the radii and speed limit of the guards,
         # whether a wall moves
-        radii = self._radii()
-        limits = (radii, speed_bound(self._domain, self._bodies.pos, radii))
+        limits = self._guard_limits()
+        radii = limits[0]
         moving = self._wallmo.moving()
         frozen = self._sleep.frozen(self._bodies.n, self._loaded())
         if frozen is not None:
@@ -771,10 +771,13 @@ class Simulation:
 
     def _guard(self, x, q, v, w, limits=None):
         # limits: (radii, speed bound) when the caller has them (they do not change in a step)
-        if limits is None:
-            radii = self._radii()
-            limits = (radii, speed_bound(self._domain, self._bodies.pos, radii))
-        check_state(x, q, v, w, *limits, self._step_count + 1)
+        check_state(x, q, v, w, *(self._guard_limits() if limits is None else limits),
+                    self._step_count + 1)
+
+    def _guard_limits(self):
+        # (radii, speed bound) of the guards: fixed within a step (the committed positions)
+        radii = self._radii()
+        return radii, speed_bound(self._domain, self._bodies.pos, radii)
 
     # ------------------------------------------------------------------ persistence
     def save(self, path):
