@@ -36,6 +36,9 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import wheel_path  # noqa: E402  (by file location, like the wire modules)
+
+wheel_path.drop_this_project()   # an inherited PYTHONPATH to our tree must not shadow the wheel
 import numpy as np  # noqa: E402
 
 import family_wire  # noqa: E402  (by file location: this interpreter has no peclet_verify)
