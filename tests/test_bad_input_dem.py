@@ -356,3 +356,58 @@ def test_fuzzed_saves_load_cleanly_or_are_refused_clearly(mutations):
                 "get_quaternions", "get_inv_inertia", "get_inv_mass", "get_shape_ids"):
         assert len(getattr(sim, get)()) == n
     assert np.all(np.isfinite(sim.get_positions()))
+
+
+# ---------------------------------------------------------------------------- rolling friction
+
+BAD_ROLLING = [
+    ("mu_r -0.1", (-0.1,), "mu_r"),
+    ("mu_r nan", (np.nan,), "mu_r"),
+    ("mu_r 1.5", (1.5,), "mu_r"),
+    ("mu_r string", ("0.1",), "mu_r"),
+    ("material id 1024", (0.1, 1024, 0), "material_a"),
+    ("material id -1", (0.1, 0, -1), "material_b"),
+    ("one material id", (0.1, 3), "material_b"),
+]
+
+
+@pytest.mark.parametrize("what, args, name", BAD_ROLLING, ids=[c[0] for c in BAD_ROLLING])
+def test_bad_rolling_friction_is_refused_naming_it(what, args, name):
+    sim = _two_spheres()
+    with pytest.raises(PecletArgumentError) as err:
+        sim.set_rolling_friction(*args)
+    assert err.value.argument == name
+    assert str(err.value).startswith(f"{name} must be ")
+
+
+def _rolling_save():
+    sim = _two_spheres()
+    sim.set_hertz_material(0, 1e7, 0.3)
+    sim.set_rolling_friction(0.1)
+    sim.set_rolling_friction(0.2, 0, 1)
+    with tempfile.TemporaryDirectory() as d:
+        p = os.path.join(d, "r.npz")
+        sim.save(p)
+        with np.load(p) as z:
+            return {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("key, value, named", [
+    ("hertz_rolling", np.array([[-1.0, -1.0, 1.5]]), "mu_r"),
+    ("hertz_rolling", np.array([[0.0, 0.5, 0.1]]), "hertz_rolling"),
+    ("hertz_rolling", np.zeros((1, 2)), "hertz_rolling"),
+    ("hertz_mr", np.zeros((3, 3)), "hertz_mr"),
+    ("hertz_mr", None, "hertz_mr"),
+    ("hertz_moduli", None, "hertz_moduli"),
+])
+def test_load_refuses_a_bad_rolling_save(tmp_path, key, value, named):
+    d = _rolling_save()
+    assert {"hertz_rolling", "hertz_mr"} <= set(d)
+    if value is None:
+        del d[key]
+    else:
+        d[key] = value
+    with pytest.raises(PecletArgumentError) as err:
+        Simulation.load(_write(d, tmp_path / "bad.npz"))
+    assert err.value.argument == "path" and named in str(err.value)
+    Simulation.load(_write(_rolling_save(), tmp_path / "good.npz"))   # unmutated: loads

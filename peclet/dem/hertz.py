@@ -43,7 +43,42 @@ measured against h / 4), independent of the engine, and finds the gamma whose re
 is ``e`` (Brent's method). The same gamma damps the tangential spring (as EDEM does).
 Restitution ``e_n`` and friction ``mu`` come from the contact's pair material (the impulse
 engine's :class:`~peclet.dem.materials.MaterialTable`, or the wall's own values); the Walton
-``e_t`` is not used by this engine. Rolling resistance: none (not implemented).
+``e_t`` is not used by this engine. Rolling resistance: optional, off by default (below).
+
+Rolling resistance (``Simulation.set_rolling_friction``, ``mu_r`` in [0, 1] per pair of
+material ids, else one value for every pair; a wall without a material id takes that value;
+0 by default). The elastic-plastic spring-dashpot of Ai, Chen, Rotter & Ooi (Powder Technol.
+206, 2011, model type C, "EPSD")::
+
+    k_r = 2.25 S_n mu_r^2 R*^2                 S_n = 2 E* sqrt(R* delta): the current normal
+                                               stiffness of the kernel
+    dtheta = (omega_a - omega_b) projected onto the tangent plane x dt  (a wall: its omega)
+    M_r <- (M_r rotated into the current tangent plane) - k_r dtheta
+    |M_r| <= mu_r R* F_n                       (else scaled onto it: fully mobilised)
+    M = M_r - C_r omega_r while |M_r| < mu_r R* F_n (no dashpot once mobilised, Ai's f = 0),
+        C_r = 2 ROLLING_DAMPING sqrt(I_r k_r), 1/I_r = sum over the bodies of 1 / (I + m l^2)
+        (l the lever arm; I from the mean principal inverse moment: exact for a sphere), |M|
+        kept within mu_r R* F_n
+
+``M`` acts on body a, ``-M`` on body b, nothing on a wall; F_n is the contact's normal force
+this step (dashpot included, >= 0). Why type C: the constant-torque model (Ai's type A) and
+the viscous ones (B, D) have no torque at rest, so they cannot hold a sphere on a slope and make
+a stopped sphere jitter; the spring of type C holds it (a sphere stays on an incline while
+tan(theta) <= mu_r) and its plastic limit gives the constant torque mu_r R* F_n while it rolls
+(a deceleration of 5/7 mu_r g on a floor). k_n is the tangent stiffness S_n because the spring
+is incremental, like the Mindlin spring; k_r only sets how fast the torque reaches its limit
+and the rolling deflection at rest, never the limit. The dashpot is kept: without it a sphere
+stopped by the plastic torque rocks elastically for ever (amplitude mu_r R* F_n / k_r).
+ROLLING_DAMPING is our choice, not a value from the paper. Departures: the total is capped at
+the plastic torque (so a contact that starts on a fast-spinning body cannot brake harder than
+the limit through its dashpot); the twist about n is not resisted. ``M_r`` is kept per contact
+key with the Mindlin history (carried, dropped and saved with it). R*: for spheres the pair's
+(a sphere's radius against a wall, also a curved one); for a composed particle's patch the
+patch's R* (the normal law's); for a distributed contact, whose kernel R*_h is no radius,
+the R* of the two bounding spheres (the bounding radius against a wall; the usual convention
+for non-spherical particles: state it when quoting mu_r for such particles). The rolling kernel
+runs only when some candidate has mu_r > 0: with mu_r = 0 everywhere the arithmetic is the
+engine's without it, bit for bit.
 
 Moduli: :meth:`HertzState.set_material` per material id (the same ids as the pair table). A
 wall without a material id is rigid (``1/E_wall = 0``); a wall with an id takes that id's
@@ -116,6 +151,12 @@ has no touching Hertz patch, the whole pair gets ONE distributed contact instead
               each inside node's cell cut at the region's boundary by bisection; inside means
               m = min_s max(phi_a, phi_b) < 0 along the node's normal line (1-Lipschitz, so a
               node with m > half the cell diagonal rules its cell out)
+    fallback: when the search neither finds an overlap nor rules one out on its first, whole
+              box: along a second normal (the deepest probe whose normal is more than
+              DIST_DISTINCT from the first's), and, for a contact that touched in the last
+              substep, along both on a grid DIST_FALLBACK times finer; of the first two that
+              find the overlap, the one with the shorter largest chord (the direction of
+              least penetration). A search that finds its overlap at once is unchanged.
     overlap:  d(x) = the chord of the intersection along n at x (Newton to both surfaces);
               V = sum d w, A = sum w over the cells (w their areas), J their second moments
     law:      p(x) = k d(x),  k = pi a E* / (K(e) A),  F = k V,  S = k A
@@ -143,15 +184,19 @@ Key: the pair and DIST_FEATURE (one per pair, stable across rebuilds; the histor
 over). ``hertz_contacts`` lists the contact with depth = the largest chord. Limits: one
 region and one normal per pair (two separate regions of a pair are lumped into one ellipse,
 their couple about n lost); the normal is a probe's, so it can jump between neighbouring
-probes on a curved surface; a region found at no grid node within DIST_ZOOMS zooms exerts no
-force until it grows; a switch between the patch law and the distributed law is a jump of a
+probes on a curved surface, and where two rims or edges cross the overlap lies between the
+probes (none inside), the nearest probe outside it sets n, and n can turn by tens of degrees
+in a substep (the largest chord then reads up to ~2x longer: the fallback's choice of the
+shorter chord covers only the fallback); a new region found at no grid node within
+DIST_ZOOMS zooms exerts no force until it grows (a touching one gets the fallback); a switch between the patch law and the distributed law is a jump of a
 few % in force and restarts the Mindlin history. Refused with :class:`HertzPatchError` (a
 PecletArgumentError naming both bodies; the state of the failing substep's start kept): a
 distributed contact whose largest chord exceeds DIST_DEEP_LIMIT x the smaller bounding radius.
-Rolling resistance is not implemented.
+Rolling resistance acts on it with the bounding spheres' R* (see "Rolling resistance").
 
-Determinism: the force kernel writes only its own contact's slots; forces and torques are
-summed into bodies serially in contact order; the history is sorted by key. Bitwise identical
+Determinism: the force and rolling kernels write only their own contact's slots; forces and
+torques are summed into bodies serially in contact order (the rolling torques after the
+forces'); the history is sorted by key. Bitwise identical
 at any thread count.
 """
 from __future__ import annotations
@@ -409,6 +454,161 @@ def accumulate(a, b, ra, rb, force, nbody, f_body, t_body):
             t_body[ib, 0] -= cx
             t_body[ib, 1] -= cy
             t_body[ib, 2] -= cz
+
+
+# --------------------------------------------------------------------------------------------
+# rolling resistance (elastic-plastic spring-dashpot, Ai et al. 2011 type C)
+# --------------------------------------------------------------------------------------------
+
+#: Largest rolling friction coefficient accepted (mu_r is a lever arm over R*: beyond 1 the
+#: plastic torque would need a lever longer than the contact's radius).
+MU_R_MAX = 1.0
+
+#: Critical-damping ratio of the rolling dashpot (Ai et al.'s eta_r). Our choice, not a value
+#: taken from the paper: at 0.3 the elastic rocking left when a rolling body stops loses ~86 % of
+#: its amplitude per cycle, and the explicit dashpot stays far inside its stability limit
+#: (2 eta_r Omega_r dt << 2 whenever dt resolves the normal contact).
+ROLLING_DAMPING = 0.3
+
+
+@njit(cache=True)
+def _contact_inv_moment(im, ii, r2):
+    # 1 / (I + m r^2) of one body about the contact point (the rolling dashpot's inertia);
+    # a fixed or rotation-locked body turns nothing: 0
+    if im <= 0.0 or ii <= 0.0:
+        return 0.0
+    return ii * im / (im + ii * r2)
+
+
+@njit(cache=True)
+def _one_rolling(i, a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
+                 inv_mass, inv_rot, dt, mr, torque):
+    # contact i of rolling_torques; writes only row i
+    d = -gap[i]
+    m = mu_r[i]
+    lim = m * rroll[i] * fn[i]
+    if d <= 0.0 or not lim > 0.0:
+        for e in range(3):
+            torque[i, e] = 0.0
+            mr[i, e] = 0.0
+        return
+    ia = a[i]
+    ib = b[i]
+    nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+    wx, wy, wz = omega[ia, 0], omega[ia, 1], omega[ia, 2]
+    if ib >= 0:
+        wx -= omega[ib, 0]
+        wy -= omega[ib, 1]
+        wz -= omega[ib, 2]
+    else:
+        wx -= wom[i, 0]
+        wy -= wom[i, 1]
+        wz -= wom[i, 2]
+    # only rolling is resisted: the twist about n is not part of this model
+    wn = wx * nx + wy * ny + wz * nz
+    wx -= wn * nx
+    wy -= wn * ny
+    wz -= wn * nz
+    # k_n is the kernel's S_n (for a distributed contact the overlap law's S)
+    kn = 2.0 * estar[i] * math.sqrt(rstar[i] * d)
+    r = rroll[i]
+    kr = 2.25 * kn * m * m * r * r
+    # history into the current tangent plane, length kept (as the Mindlin history)
+    hx, hy, hz = mr[i, 0], mr[i, 1], mr[i, 2]
+    old = math.sqrt(hx * hx + hy * hy + hz * hz)
+    hn = hx * nx + hy * ny + hz * nz
+    hx -= hn * nx
+    hy -= hn * ny
+    hz -= hn * nz
+    new = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if new > 0.0:
+        s = old / new
+        hx *= s
+        hy *= s
+        hz *= s
+    hx -= kr * wx * dt
+    hy -= kr * wy * dt
+    hz -= kr * wz * dt
+    h = math.sqrt(hx * hx + hy * hy + hz * hz)
+    tx, ty, tz = hx, hy, hz
+    if h >= lim:
+        # fully mobilised: the spring holds the plastic torque, the dashpot is off (Ai's f = 0)
+        s = lim / h
+        hx *= s
+        hy *= s
+        hz *= s
+        tx, ty, tz = hx, hy, hz
+    else:
+        ja = _contact_inv_moment(inv_mass[ia], inv_rot[ia],
+                                 ra[i, 0] * ra[i, 0] + ra[i, 1] * ra[i, 1] + ra[i, 2] * ra[i, 2])
+        jb = 0.0
+        if ib >= 0:
+            jb = _contact_inv_moment(inv_mass[ib], inv_rot[ib], rb[i, 0] * rb[i, 0]
+                                     + rb[i, 1] * rb[i, 1] + rb[i, 2] * rb[i, 2])
+        j = ja + jb
+        if j > 0.0:
+            cr = 2.0 * ROLLING_DAMPING * math.sqrt(kr / j)
+            tx -= cr * wx
+            ty -= cr * wy
+            tz -= cr * wz
+            # spring plus dashpot never beyond the plastic torque
+            t = math.sqrt(tx * tx + ty * ty + tz * tz)
+            if t > lim:
+                s = lim / t
+                tx *= s
+                ty *= s
+                tz *= s
+    mr[i, 0], mr[i, 1], mr[i, 2] = hx, hy, hz
+    torque[i, 0], torque[i, 1], torque[i, 2] = tx, ty, tz
+
+
+@njit(cache=True)
+def _rolling_serial(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
+                    inv_mass, inv_rot, dt, mr, torque):
+    for i in range(a.shape[0]):
+        _one_rolling(i, a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
+                     inv_mass, inv_rot, dt, mr, torque)
+
+
+@njit(cache=True, parallel=True)
+def _rolling_parallel(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
+                      inv_mass, inv_rot, dt, mr, torque):
+    for i in prange(a.shape[0]):
+        _one_rolling(i, a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
+                     inv_mass, inv_rot, dt, mr, torque)
+
+
+def rolling_torques(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
+                    inv_mass, inv_rot, dt, mr, torque):
+    """Per contact i (each writes only row i): the rolling resistance torque on body ``a[i]``
+    (``torque`` (nc, 3), world; b gets its opposite, a wall nothing). ``mr`` (nc, 3) comes in
+    as last step's spring torque (zero for a new contact) and leaves as this step's (zero where
+    the bodies do not touch or do not press). ``wom`` the angular velocity of a wall b,
+    ``rstar`` the kernel's R* (with ``gap`` and ``estar``: the normal stiffness), ``rroll``
+    the rolling radius, ``fn`` the normal force of :func:`contact_forces` this step,
+    ``inv_rot`` (N,) the bodies' mean principal inverse moment (the dashpot's inertia)."""
+    run = _rolling_parallel if len(a) >= PARALLEL_MIN else _rolling_serial
+    run(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn, inv_mass,
+        inv_rot, dt, mr, torque)
+
+
+@njit(cache=True)
+def accumulate_torques(a, b, torque, t_body):
+    """Add each contact's rolling torque to its bodies, serially in contact order: a gets +T,
+    b (a body) -T, a wall nothing."""
+    for i in range(a.shape[0]):
+        tx, ty, tz = torque[i, 0], torque[i, 1], torque[i, 2]
+        if tx == 0.0 and ty == 0.0 and tz == 0.0:
+            continue
+        ia = a[i]
+        t_body[ia, 0] += tx
+        t_body[ia, 1] += ty
+        t_body[ia, 2] += tz
+        ib = b[i]
+        if ib >= 0:
+            t_body[ib, 0] -= tx
+            t_body[ib, 1] -= ty
+            t_body[ib, 2] -= tz
 
 
 @njit(cache=True)
@@ -1234,23 +1434,24 @@ def _grid_eval(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, 
             gs[i, j] = s
 
 
+#: A distributed contact's second normal candidate differs from the first by more than this
+#: angle (rad).
+DIST_DISTINCT = math.radians(30.0)
+#: The fallback search's grid is this many times finer.
+DIST_FALLBACK = 4
+#: _dist_region's status when its search ended without an overlap it could rule out.
+_DIST_UNRESOLVED = -1
+
+
 @njit(cache=True)
-def _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr,
-               pa0, pa1, pb0, pb1, probes, N, zooms, nbis, estar, out):
-    """The distributed contact of one pair (module docstring, "Distributed"): writes ``out``
-    = (point (3), normal from b to a (3), largest overlap, elastic force, stiffness S = k A,
-    area A, overlap volume V, equivalent ellipse semi-axes a, b) and returns PATCH_OK (force 0
-    when nothing overlaps) or PATCH_DIST_DEEP. Probes [pa0, pa1) are a's (home frame),
-    [pb0, pb1) b's; they only fix the normal (the deepest one's, the other body's outward
-    normal there)."""
-    st = np.empty((MAX_STACK, STACK_COLS))
-    for e in range(out.shape[0]):
-        out[e] = 0.0
-    scale = min(rada, radb)
-    # ---- normal: at the deepest probe (of a in b, or of b in a)
+def _nearest_probe(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr,
+                   pa0, pa1, pb0, pb1, probes, scale, st, excl, cmax, n, y0):
+    """The deepest probe (of a in b, or of b in a; the smallest phi / |grad phi| in the other
+    body, +inf when no probe is in reach, returned) with the other body's outward unit
+    normal there (from b to a) into ``n`` and the probe into ``y0``; with ``excl`` only
+    among the probes whose normal has a cosine below ``cmax`` with ``n``'s incoming value."""
     best = np.inf
-    n = np.zeros(3)
-    y0 = np.zeros(3)
+    e0, e1, e2 = n[0], n[1], n[2]
     for side in range(2):
         p0, p1 = (pa0, pa1) if side == 0 else (pb0, pb1)
         xo, Ro = (xa, Ra) if side == 0 else (xb, Rb)
@@ -1278,11 +1479,83 @@ def _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, 
                 continue
             d = ph / gn
             if d < best:
+                if excl and sg * (gx * e0 + gy * e1 + gz * e2) / gn >= cmax:
+                    continue
                 best = d
                 n[0], n[1], n[2] = sg * gx / gn, sg * gy / gn, sg * gz / gn
                 y0[0], y0[1], y0[2] = px, py, pz
+    return best
+
+
+@njit(cache=True)
+def _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr,
+               pa0, pa1, pb0, pb1, probes, N, zooms, nbis, estar, touched, out):
+    """The distributed contact of one pair (module docstring, "Distributed"): writes ``out``
+    = (point (3), normal from b to a (3), largest overlap, elastic force, stiffness S = k A,
+    area A, overlap volume V, equivalent ellipse semi-axes a, b) and returns PATCH_OK (force 0
+    when nothing overlaps) or PATCH_DIST_DEEP. Probes [pa0, pa1) are a's (home frame),
+    [pb0, pb1) b's; they only fix the normal (the deepest one's, the other body's outward
+    normal there). ``touched``: the pair's distributed contact touched in the last substep
+    (it then gets the fallback search of the module docstring when nothing is found)."""
+    st = np.empty((MAX_STACK, STACK_COLS))
+    for e in range(out.shape[0]):
+        out[e] = 0.0
+    scale = min(rada, radb)
+    n = np.zeros(3)
+    y0 = np.zeros(3)
+    best = _nearest_probe(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk,
+                          lr, pa0, pa1, pb0, pb1, probes, scale, st, False, 1.0, n, y0)
     if best == np.inf:
         return PATCH_OK
+    res = _dist_region(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr,
+                       N, zooms, nbis, estar, scale, st, n, y0, out)
+    if res != _DIST_UNRESOLVED:
+        return res
+    # Neither found nor ruled out. Where two bodies' rims or edges cross, the overlap (0.2-0.5
+    # mm in a ring bed, against the grid's 1.2 mm cells) lies between the probes, the nearest
+    # probe outside it sets the normal, and the region can fall between the nodes at every
+    # zoom: a pair carrying 8 N lost it for 17 substeps and was found again deeper. Tried in
+    # turn: the nearest probe with a normal more than DIST_DISTINCT from the first's, and, for
+    # a contact that touched a substep ago, both normals on a grid DIST_FALLBACK times finer;
+    # of the first two that find the overlap the shorter one is kept (the direction of least
+    # penetration: along the other normal an overlap read 0.5 mm against 0.27 mm).
+    n2 = n.copy()
+    y2 = np.zeros(3)
+    best2 = _nearest_probe(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk,
+                           lr, pa0, pa1, pb0, pb1, probes, scale, st, True,
+                           math.cos(DIST_DISTINCT), n2, y2)
+    alt = np.empty(out.shape[0])
+    found = 0
+    res = PATCH_OK
+    for k in range(3):
+        # k = 0: the second normal; 1, 2: the first and the second on the finer grid
+        if (k != 1 and best2 == np.inf) or (k > 0 and not touched):
+            continue
+        nk, yk = (n, y0) if k == 1 else (n2, y2)
+        r = _dist_region(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk,
+                         lr, N if k == 0 else DIST_FALLBACK * N, zooms, nbis, estar, scale, st,
+                         nk, yk, alt)
+        if r == _DIST_UNRESOLVED:
+            continue
+        if found == 0 or alt[6] < out[6]:
+            for e in range(out.shape[0]):
+                out[e] = alt[e]
+            res = r
+        found += 1
+        if found == 2:
+            break
+    return res
+
+
+@njit(cache=True)
+def _dist_region(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk, lr, N,
+                 zooms, nbis, estar, scale, st, n, y0, out):
+    """The region, overlap and law of :func:`_dist_pair` along the unit normal ``n`` (from b
+    to a) through the probe ``y0``: writes ``out`` and returns PATCH_OK (force 0: nothing
+    overlaps anywhere, a rigorous bound on the first, whole box), _DIST_UNRESOLVED (force 0:
+    no overlap found, none ruled out) or PATCH_DIST_DEEP."""
+    for e in range(out.shape[0]):
+        out[e] = 0.0
     out[3], out[4], out[5] = n[0], n[1], n[2]
     # ---- grid box: the smaller side's bounding disc, in the plane through y0
     xs = xa if rada <= radb else xb
@@ -1332,7 +1605,9 @@ def _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, 
                     border = border1 or border2
         if cnt == 0:
             if gm[imin, jmin] > hd:
-                return PATCH_OK                    # nothing within reach: no overlap
+                # nothing within reach: no overlap, a rigorous bound on the first (whole) box
+                # only; after a zoom it is the zoomed box's
+                return PATCH_OK if it == 0 else _DIST_UNRESOLVED
             # quadratic model of m on the 3 x 3 nodes around the smallest: jump to its minimum
             i0 = min(max(imin, 1), N - 2)
             j0 = min(max(jmin, 1), N - 2)
@@ -1561,7 +1836,7 @@ def _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, 
             J22 += w * (q2 * q2 + l2 * l2 / 12.0)
             dmax = max(dmax, d)
     if not (V > 0.0):
-        return PATCH_OK
+        return _DIST_UNRESOLVED
     a1 = cA1 / A
     a2 = cA2 / A
     J11 -= A * a1 * a1
@@ -1596,7 +1871,7 @@ def _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, 
 @njit(cache=True)
 def _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, shape_p0,
               shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk, lr, estar,
-              N, zooms, nbis, out, status):
+              touched, N, zooms, nbis, out, status):
     """Distributed contact i of :func:`distributed_geometry` (writes only row i)."""
     xa = np.empty(3)
     xb = np.empty(3)
@@ -1613,39 +1888,42 @@ def _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_o
         pb0 = shape_p0[shape_of[ib]]
         pb1 = pb0 + shape_np[shape_of[ib]]
     status[i] = _dist_pair(ka, rada, xa, Ra, oa0, oa1, kb, radb, xb, Rb, ob0, ob1, sb, ops, lk,
-                           lr, pa0, pa1, pb0, pb1, probes, N, zooms, nbis, estar[i], out[i])
+                           lr, pa0, pa1, pb0, pb1, probes, N, zooms, nbis, estar[i],
+                           touched[i] != 0, out[i])
 
 
 @njit(cache=True)
 def _dist_serial(a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, shape_p0,
                  shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk, lr, estar,
-                 N, zooms, nbis, out, status):
+                 touched, N, zooms, nbis, out, status):
     for i in range(a.shape[0]):
         _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op,
                   shape_p0, shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk,
-                  lr, estar, N, zooms, nbis, out, status)
+                  lr, estar, touched, N, zooms, nbis, out, status)
 
 
 @njit(cache=True, parallel=True)
 def _dist_parallel(a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op, shape_p0,
                    shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk, lr,
-                   estar, N, zooms, nbis, out, status):
+                   estar, touched, N, zooms, nbis, out, status):
     for i in prange(a.shape[0]):
         _dist_one(i, a, b, shift, pos, rot, shape_of, shape_kind, shape_rad, shape_op,
                   shape_p0, shape_np, probes, wall_op, wall_sign, wall_pos, wall_rot, ops, lk,
-                  lr, estar, N, zooms, nbis, out, status)
+                  lr, estar, touched, N, zooms, nbis, out, status)
 
 
 #: Below this many distributed contacts they are computed serially (same bits either way).
 DIST_PARALLEL_MIN = 4
 
 
-def distributed_geometry(a, b, shift, pos, rot, shape_of, geo, estar):
+def distributed_geometry(a, b, shift, pos, rot, shape_of, geo, estar, touched=None):
     """The distributed contact of each pair (a[i], b[i] at image shift[i]; E* per pair):
     (out (P, 13): point (3), normal (3), largest overlap, elastic force, stiffness S, area,
     overlap volume, ellipse semi-axes; status (P,)). A pair with nothing overlapping has
-    force 0."""
+    force 0. ``touched`` (P,) bool: the pair's distributed contact touched in the last
+    substep (the fallback search; None: none did)."""
     n = len(a)
+    touched = np.zeros(n, np.int64) if touched is None else np.asarray(touched, np.int64)
     out = np.zeros((n, 13))
     status = np.zeros(n, np.int64)
     nps = np.diff(np.append(geo.shape_p0, len(geo.probes))).astype(np.int64)
@@ -1653,7 +1931,7 @@ def distributed_geometry(a, b, shift, pos, rot, shape_of, geo, estar):
     run(np.asarray(a, np.int64), np.asarray(b, np.int64), np.ascontiguousarray(shift), pos, rot,
         shape_of, geo.shape_kind, geo.shape_rad, geo.shape_op, geo.shape_p0, nps, geo.probes,
         geo.wall_op, geo.wall_sign, geo.wall_pos, geo.wall_rot, geo.ops, geo.lk, geo.lr,
-        np.ascontiguousarray(estar, dtype=np.float64), np.int64(DIST_GRID),
+        np.ascontiguousarray(estar, dtype=np.float64), touched, np.int64(DIST_GRID),
         np.int64(DIST_ZOOMS), np.int64(DIST_BISECT), out, status)
     return out, status
 
@@ -1680,13 +1958,17 @@ def damping_gamma_linear(e):
 # --------------------------------------------------------------------------------------------
 
 class HertzState:
-    """The Hertz engine's state in a Simulation: moduli per material id and the tangential
-    history (``keys`` (K,) sorted int64, ``xi`` (K, 3) world frame, for ``n_bodies`` bodies)."""
+    """The Hertz engine's state in a Simulation: moduli per material id, rolling friction per
+    pair of material ids, and the contact histories (``keys`` (K,) sorted int64, ``xi`` (K, 3)
+    the tangential displacement and ``mr`` (K, 3) the rolling spring torque, world frame, for
+    ``n_bodies`` bodies)."""
 
     def __init__(self):
         self.moduli = {}                       # material id -> (E, nu)
+        self.rolling = {}                      # (i, j), i <= j, or None (every pair) -> mu_r
         self.keys = np.zeros(0, np.int64)
         self.xi = np.zeros((0, 3))
+        self.mr = np.zeros((0, 3))
         self.n_bodies = -1
         self.last = None                       # the last substep's contacts and forces
         self.cand = None                       # the candidate list (see substep)
@@ -1701,9 +1983,35 @@ class HertzState:
         nu = check_float("poisson", poisson, -1.0, 0.5, lo_open=True, hi_open=True)
         self.moduli[mid] = (e, nu)
 
+    def set_rolling(self, mu_r, material_a=None, material_b=None):
+        """Rolling friction ``mu_r`` in [0, MU_R_MAX] for the pair of material ids
+        (``material_a``, ``material_b``), or for every pair not declared when both are None."""
+        mu_r = check_float("mu_r", mu_r, 0.0, MU_R_MAX)
+        if (material_a is None) != (material_b is None):
+            raise PecletArgumentError("material_b" if material_b is None else "material_a",
+                                      "given together with the other material id (a pair), "
+                                      "or both None (every pair)", None)
+        if material_a is None:
+            self.rolling[None] = mu_r
+            return
+        ia = check_int("material_a", material_a, 0, MAX_MATERIAL_ID)
+        ib = check_int("material_b", material_b, 0, MAX_MATERIAL_ID)
+        self.rolling[(min(ia, ib), max(ia, ib))] = mu_r
+
+    def rolling_active(self):
+        return any(v > 0.0 for v in self.rolling.values())
+
+    def snapshot(self):
+        """What a refused substep puts back (:meth:`restore`): histories and candidates."""
+        return (self.keys, self.xi, self.mr, self.cand)
+
+    def restore(self, kept):
+        self.keys, self.xi, self.mr, self.cand = kept
+
     def clear_history(self):
         self.keys = np.zeros(0, np.int64)
         self.xi = np.zeros((0, 3))
+        self.mr = np.zeros((0, 3))
 
     def _modulus(self, mid, what):
         if mid not in self.moduli:
@@ -1740,10 +2048,20 @@ class HertzState:
             out[hit] = self.xi[j[hit]]
         return out
 
-    def store(self, keys, xi, touching, n_bodies):
+    def lookup_rolling(self, keys):
+        """The stored rolling spring torque (nc, 3) of each key, zero for a new contact."""
+        out = np.zeros((len(keys), 3))
+        if len(keys) and len(self.keys):
+            j = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
+            hit = self.keys[j] == keys
+            out[hit] = self.mr[j[hit]]
+        return out
+
+    def store(self, keys, xi, touching, n_bodies, mr=None):
         o = np.argsort(keys[touching], kind="stable")
         self.keys = keys[touching][o]
         self.xi = xi[touching][o]
+        self.mr = mr[touching][o] if mr is not None else np.zeros((len(self.keys), 3))
         self.n_bodies = n_bodies
 
     def arrays(self):
@@ -1751,6 +2069,14 @@ class HertzState:
         rows = [[k, e, nu] for k, (e, nu) in sorted(self.moduli.items())]
         return (np.array(rows, np.float64).reshape(-1, 3), self.keys.copy(), self.xi.copy(),
                 np.int64(self.n_bodies))
+
+    def rolling_arrays(self):
+        """(settings (P, 3) rows material_a, material_b, mu_r with -1, -1 for every pair;
+        mr (K, 3) aligned with ``keys``) for a save."""
+        rows = [[-1, -1, v] if k is None else [k[0], k[1], v]
+                for k, v in sorted(self.rolling.items(), key=lambda kv: (-1, -1)
+                                   if kv[0] is None else kv[0])]
+        return np.array(rows, np.float64).reshape(-1, 3), np.ascontiguousarray(self.mr)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1789,6 +2115,37 @@ def _pair_parameters(sim, c, state, mass_inv):
     return 1.0 / ce, 1.0 / cg, rstar, mstar, gam, np.ascontiguousarray(mu_c, dtype=np.float64)
 
 
+def _pair_rolling(sim, c, state):
+    """mu_r per contact (nc,) from :meth:`HertzState.set_rolling` (a pair of material ids, else
+    the setting for every pair, else 0; a wall without a material id takes the setting for
+    every pair), or None when no contact has rolling resistance (the step then does not run
+    the rolling kernel at all: the arithmetic of a run without it)."""
+    if not state.rolling_active():
+        return None
+    mats = sim._materials
+    nc = len(c.a)
+    ida = mats.body_ids[c.a] if mats.body_ids is not None else np.zeros(nc, np.int64)
+    isw = c.b < 0
+    bb = np.where(isw, 0, c.b)
+    idb = mats.body_ids[bb] if mats.body_ids is not None else np.zeros(nc, np.int64)
+    if len(mats.wall_ids):
+        idb = np.where(isw, mats.wall_ids[np.where(isw, -1 - c.b, 0)], idb)
+    else:
+        idb = np.where(isw, -1, idb)
+    default = state.rolling.get(None, 0.0)
+    out = np.full(nc, default)
+    pairs = [(k, v) for k, v in state.rolling.items() if k is not None]
+    if pairs:
+        lo = np.minimum(ida, idb)
+        hi = np.maximum(ida, idb)
+        own_wall = idb < 0
+        for (i, j), v in pairs:
+            out[(lo == i) & (hi == j) & ~own_wall] = v
+    if not np.any(out > 0.0):
+        return None
+    return out
+
+
 def _pair_restitution(sim, c):
     """e_n per contact (the pair material's, as :func:`_pair_parameters` uses)."""
     from peclet.dem.materials import per_contact
@@ -1808,6 +2165,7 @@ def _distributed_rows(sim, state, cand, x, rotm, pa, pb, pp, pn, pg, status, kep
     composed arrays, overlap-law arrays: kernel gap (D,), kernel R* (D,), gamma (D,)) or None
     when no pair is distributed. Raises HertzPatchError (state restored from ``kept``) for a
     distributed contact it refuses."""
+    from peclet.dem.contacts import WarmStart
     dist = (status != PATCH_OK) | (cand.mode == MODE_DISTRIBUTED)
     # a pair with a failed seed (a watched probe) and no touching Hertz patch is sampled too:
     # a line or edge contact can lie between the probes
@@ -1821,10 +2179,13 @@ def _distributed_rows(sim, state, cand, x, rotm, pa, pb, pp, pn, pg, status, kep
     in_d = np.isin(cand.first, rep)
     k = cand.comp
     estar = cand.params[0][k][rep]
+    dkeys = WarmStart.keys_of(_Pairs(pa[rep], pb[rep], np.full(len(rep), DIST_FEATURE,
+                                                                np.int64)), len(sim._walls))
     out, dst = distributed_geometry(pa[rep], pb[rep], cand.shift[k][rep], x, rotm,
-                                    sim._shape_table()[1], sim._geometry(), estar)
+                                    sim._shape_table()[1], sim._geometry(), estar,
+                                    np.isin(dkeys, state.keys))
     if np.any(dst != PATCH_OK):
-        state.keys, state.xi, state.cand = kept
+        state.restore(kept)
         _raise_patch_error(pa[rep], pb[rep], dst)
     pg[in_d] = np.inf
     status[in_d] = PATCH_OK
@@ -1883,7 +2244,8 @@ class Candidates(NamedTuple):
     gamma, mu) per candidate. With composed particles: ``comp`` the rows that are patches and
     ``sph`` the others, and per patch ``mode`` (0 a patch tracked by ``u`` in a's home frame; 1
     / 2 a watched probe of a / of b, ``u`` in that body's frame) and ``first`` (its pair's
-    first patch); ``comp`` None otherwise."""
+    first patch); ``comp`` None otherwise. ``mu_r`` the rolling friction per candidate, None
+    when no candidate has any."""
     a: np.ndarray
     b: np.ndarray
     shift: np.ndarray
@@ -1900,6 +2262,7 @@ class Candidates(NamedTuple):
     first: np.ndarray = None
     q_ref: np.ndarray = None
     e_n: np.ndarray = None
+    mu_r: np.ndarray = None
 
 
 class _Pairs(NamedTuple):
@@ -1981,7 +2344,8 @@ def _composed_candidates(sim, state, c, x, rot, geo, shape_of, skin, n_walls):
         u[too_many, 0] = 0.0
         probe[too_many, 0] = -1
     spacing = _probe_spacing(state, geo)
-    old_keys, old_xi = state.keys, state.xi
+    # the Mindlin and rolling histories travel together (columns 0-2 and 3-5)
+    old_keys, old_xi = state.keys, np.hstack([state.xi, state.mr])
     mask = (1 << _FEATURE_BITS) - 1
     out_a, out_b, out_s, out_f, out_c = [], [], [], [], []
     p_mode, p_u, p_first = [], [], []
@@ -2073,9 +2437,12 @@ def _composed_candidates(sim, state, c, x, rot, geo, shape_of, skin, n_walls):
     # the stored histories: the composed pairs' entries replaced by the carried ones
     keep = ~np.isin(old_keys >> _FEATURE_BITS, np.array(dropped_pairs, np.int64))
     nk = np.concatenate([old_keys[keep], np.array(carried_keys, np.int64)])
-    nx = np.concatenate([old_xi[keep], np.array(carried_xi, np.float64).reshape(-1, 3)])
+    nx = np.concatenate([old_xi[keep], np.array(carried_xi, np.float64).reshape(-1, 6)])
     o = np.argsort(nk, kind="stable")
-    state.keys, state.xi = nk[o], nx[o]
+    nx = nx[o]
+    state.keys = nk[o]
+    state.xi = np.ascontiguousarray(nx[:, :3])
+    state.mr = np.ascontiguousarray(nx[:, 3:])
     return (a, b, shift, feat, keys, np.flatnonzero(isc), np.flatnonzero(~isc),
             np.concatenate(p_mode).astype(np.int64),
             np.ascontiguousarray(np.concatenate(p_u).reshape(-1, 3)),
@@ -2126,13 +2493,15 @@ def _candidates(sim, state, x, q, skin_frac, inv_mass):
         cand = Candidates(c.a, c.b, np.ascontiguousarray(c.shift), c.feat,
                           WarmStart.keys_of(c, n_walls), x.copy(), skin, radii,
                           _pair_parameters(sim, c, state, inv_mass),
-                          q_ref=q.copy() if scene.any() else None)
+                          q_ref=q.copy() if scene.any() else None,
+                          mu_r=_pair_rolling(sim, c, state))
     else:
         a, b, shift, feat, keys, crow, srow, mode, u, first = comp
         cand = Candidates(a, b, shift, feat, keys, x.copy(), skin, radii,
                           _pair_parameters(sim, _Pairs(a, b, feat), state, inv_mass),
                           crow, srow, mode, u, first, q.copy(),
-                          _pair_restitution(sim, _Pairs(a, b, feat)))
+                          _pair_restitution(sim, _Pairs(a, b, feat)),
+                          _pair_rolling(sim, _Pairs(a, b, feat), state))
     state.cand = cand
     return cand
 
@@ -2154,11 +2523,11 @@ def substep(sim, state, dt, skin_frac):
     inv_mass, inv_inertia, x, q, v, w = sim._working_state()
     limits = sim._guard_limits()        # fixed within the substep
     sim._guard(x, q, v, w, limits)
-    kept = (state.keys, state.xi, state.cand)
+    kept = state.snapshot()
     try:
         cand = _candidates(sim, state, x, q, skin_frac, inv_mass)
     except HertzPatchError:
-        state.keys, state.xi, state.cand = kept     # a rebuild re-keys the histories
+        state.restore(kept)     # a rebuild re-keys the histories
         raise
     t1 = time.perf_counter()
     nc = len(cand.a)
@@ -2190,16 +2559,21 @@ def substep(sim, state, dt, skin_frac):
             rotm, sim._shape_table()[1], geo)
         dist = _distributed_rows(sim, state, cand, x, rotm, pa, pb, pp, pn, pg, status, kept)
         if np.any(status != PATCH_OK):
-            state.keys, state.xi, state.cand = kept
+            state.restore(kept)
             _raise_patch_error(pa, pb, status)
         point[k], normal[k], gap[k] = pp, pn, pg
         rstar = rstar.copy()
         rstar[k] = pr
     feat, keys = cand.feat, cand.keys
     gap_k = gap
+    # the rolling lever: the normal law's R* (a patch's), but a distributed contact takes its
+    # bounding spheres' R* (its kernel R*_h is no radius, see the module notes)
+    rroll = rstar
     if dist is not None:
         # the distributed contacts: their own key and the overlap law through the kernel
         rows = cand.comp[dist[0]]
+        rroll = rstar.copy()
+        rroll[rows] = cand.params[2][rows]
         feat = feat.copy()
         feat[rows] = DIST_FEATURE
         keys = keys.copy()
@@ -2225,6 +2599,19 @@ def substep(sim, state, dt, skin_frac):
     fb = np.zeros((b.n, 3)) if sim._ext_force is None else sim._ext_force.copy()
     tb = np.zeros((b.n, 3)) if sim._ext_torque is None else sim._ext_torque.copy()
     accumulate(c.a, c.b, ra, rb, force, b.n, fb, tb)
+    mr = None
+    if cand.mu_r is not None:
+        mr = state.lookup_rolling(keys)
+        wom = np.zeros((nc, 3))
+        if sim._wallmo.moving():
+            isw = c.b < 0
+            wom[isw] = sim._wallmo.omega[-1 - c.b[isw]]
+        troll = np.empty((nc, 3))
+        rolling_torques(c.a, c.b, np.ascontiguousarray(c.normal), np.ascontiguousarray(gap_k),
+                        ra, rb, w, wom, estar, rstar, np.ascontiguousarray(rroll), cand.mu_r,
+                        fn, inv_mass, np.ascontiguousarray(inv_inertia.mean(axis=1)), dt, mr,
+                        troll)
+        accumulate_torques(c.a, c.b, troll, tb)
     wii = solver.world_inv_inertias(q, inv_inertia)
     with np.errstate(over="ignore", invalid="ignore"):   # the guard reports it
         kick_drift(x, v, w, fb, tb, inv_mass, np.ascontiguousarray(wii), sim._gravity, dt)
@@ -2235,10 +2622,10 @@ def substep(sim, state, dt, skin_frac):
     # commit
     b.pos, b.quat, b.vel, b.omega = x, q, v, w
     touching = c.gap < 0.0
-    state.store(keys, xi, touching, b.n)
+    state.store(keys, xi, touching, b.n, mr)
     if unew is not None:
         state.cand = cand._replace(u=unew)
-    state.last = (c, force, fn, xi)
+    state.last = (c, force, fn, xi, troll if mr is not None else None)
     sim._wallmo.advance(dt)
     sim._num_contacts = int(np.count_nonzero(touching))
     sim._step_count += 1
@@ -2252,16 +2639,21 @@ def last_listing(state):
     """The last substep's touching contacts, sorted by (body_a, body_b, feature): ``body_a``,
     ``body_b`` (a wall is -1 - index), ``point`` (n, 3), ``normal`` (n, 3) from b to a,
     ``depth`` (n,) overlap > 0, ``force`` (n, 3) on body a (world; b gets the opposite),
-    ``normal_force`` (n,) >= 0, ``tangential_displacement`` (n, 3) the Mindlin history."""
+    ``normal_force`` (n,) >= 0, ``tangential_displacement`` (n, 3) the Mindlin history,
+    ``rolling_torque`` (n, 3) the rolling resistance torque on body a (b gets the opposite, a
+    wall nothing; zero without rolling friction)."""
     if state.last is None:
         z = np.zeros(0)
         return {"body_a": np.zeros(0, np.int64), "body_b": np.zeros(0, np.int64),
                 "point": np.zeros((0, 3)), "normal": np.zeros((0, 3)), "depth": z,
                 "force": np.zeros((0, 3)), "normal_force": z,
-                "tangential_displacement": np.zeros((0, 3))}
-    c, force, fn, xi = state.last
+                "tangential_displacement": np.zeros((0, 3)), "rolling_torque": np.zeros((0, 3))}
+    c, force, fn, xi, troll = state.last
     m = c.gap < 0.0
     o = np.lexsort((c.feat[m], c.b[m], c.a[m]))
+    if troll is None:
+        troll = np.zeros((len(c.a), 3))
     return {"body_a": c.a[m][o], "body_b": c.b[m][o], "point": c.point[m][o],
             "normal": c.normal[m][o], "depth": -c.gap[m][o], "force": force[m][o],
-            "normal_force": fn[m][o], "tangential_displacement": xi[m][o]}
+            "normal_force": fn[m][o], "tangential_displacement": xi[m][o],
+            "rolling_torque": troll[m][o]}

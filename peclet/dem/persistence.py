@@ -29,6 +29,10 @@ _V3_KEYS = ("scales",)
 #: (peclet/dem/hertz.py): its moduli per material id and the tangential history, so a Hertz
 #: run resumes bitwise. A save without them loads as before.
 _HERTZ_KEYS = ("hertz_moduli", "hertz_keys", "hertz_xi", "hertz_n")
+#: Present (both, with the Hertz keys) only in a save of a simulation whose rolling friction
+#: was set (Simulation.set_rolling_friction): the settings (rows material_a, material_b, mu_r;
+#: -1, -1 for every pair) and the rolling spring torque per history key.
+_ROLLING_KEYS = ("hertz_rolling", "hertz_mr")
 #: Present (all three) only in a save of a simulation with sleeping on (peclet/dem/sleep.py):
 #: its threshold and each body's flag and count, so that a sleeping run resumes bitwise.
 _SLEEP_KEYS = ("sleep_params", "sleep_asleep", "sleep_count")
@@ -69,8 +73,10 @@ def to_arrays(sim):
               "scales": sim._scales.values if sim._scales.values is not None
               else np.zeros(0)})
     hz = sim._hertz
-    if hz.moduli or len(hz.keys):
+    if hz.moduli or len(hz.keys) or hz.rolling:
         d.update(zip(_HERTZ_KEYS, hz.arrays()))
+    if hz.rolling:
+        d.update(zip(_ROLLING_KEYS, hz.rolling_arrays()))
     if sim._sleep.on:
         d.update(zip(_SLEEP_KEYS, sim._sleep.arrays()))
     for i, s in enumerate(sim._shapes):
@@ -148,6 +154,8 @@ def _required_keys(d):
             keys.update(_V3_KEYS)
     if "hertz_moduli" in d:
         keys.update(_HERTZ_KEYS)
+    if "hertz_rolling" in d:
+        keys.update(_HERTZ_KEYS + _ROLLING_KEYS)
     if "sleep_params" in d:
         keys.update(_SLEEP_KEYS)
     for i in range(n_shapes):
@@ -308,7 +316,20 @@ def _load_hertz(sim, d):
         raise PecletArgumentError("hertz_keys", "sorted", "unsorted keys")
     hz = sim._hertz
     hz.keys, hz.xi = keys, xi.copy()
+    hz.mr = np.zeros((len(keys), 3))
     hz.n_bodies = _scalar(d, "hertz_n", -1, 2 ** 40)
+    if "hertz_rolling" in d:
+        for a, b, mu_r in _arr(d, "hertz_rolling", np.float64, (None, 3)).tolist():
+            if (a, b) == (-1.0, -1.0):
+                sim.set_rolling_friction(mu_r)
+            elif a != int(a) or b != int(b):
+                raise PecletArgumentError("hertz_rolling", "integer material ids", (a, b))
+            else:
+                sim.set_rolling_friction(mu_r, int(a), int(b))
+        mr = _arr(d, "hertz_mr", np.float64, (len(keys), 3))
+        if not np.all(np.isfinite(mr)):
+            raise PecletArgumentError("hertz_mr", "finite numbers", "non-finite entries")
+        hz.mr = mr.copy()
 
 
 def _load_warm_start(sim, d):

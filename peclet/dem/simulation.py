@@ -725,6 +725,25 @@ class Simulation:
         material (:meth:`set_pair_material`, :meth:`set_material_params`, the wall's own)."""
         self._hertz.set_material(material_id, youngs, poisson)
 
+    def set_rolling_friction(self, mu_r, material_a=None, material_b=None):
+        """Rolling resistance of :meth:`step_hertz` (off by default: ``mu_r`` 0 everywhere).
+
+        ``mu_r`` (dimensionless, in [0, 1]) is the rolling friction coefficient: a contact
+        resists the relative rolling of its bodies with a torque that builds up elastically and
+        saturates at ``mu_r R* F_n`` (torque units of the caller: length x force), R* the
+        contact's effective radius (a sphere's radius against a wall), F_n its normal force;
+        the elastic-plastic spring-dashpot law of :mod:`peclet.dem.hertz` (Ai et al. 2011,
+        type C). On a flat floor a rolling sphere then decelerates at 5/7 ``mu_r`` g and stops;
+        on an incline of slope tan(theta) < ``mu_r`` it stays put. With both material ids None
+        the value applies to every pair not declared on its own (and to walls without a
+        material id); ``material_a`` and ``material_b`` (ids in [0, 1023] of
+        :meth:`set_material_ids` / :meth:`set_wall_material_id`) set one pair. The torque acts
+        on both bodies, equal and opposite (a wall takes none). The impulse :meth:`step`
+        ignores it. Raises PecletArgumentError for ``mu_r`` outside [0, 1] (or NaN) and for a
+        material id outside [0, 1023] or given without the other."""
+        self._hertz.set_rolling(mu_r, material_a, material_b)
+        self._hertz.cand = None          # the candidates carry each pair's mu_r
+
     def step_hertz(self, substeps=1, dt=None, skin_frac=None):
         """Advance by ``substeps`` (an integer in [1, 10**6]) explicit Hertz–Mindlin substeps of
         ``dt`` each (else the :meth:`set_dt` value; finite, > 0), for spheres and composed
