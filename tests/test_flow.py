@@ -37,6 +37,34 @@ def test_zick_homsy_dense_array_within_two_percent_at_16_cells():
     assert abs(r["balance"] - 1.0) < 1e-3        # wall force = body force at steady state
 
 
+def test_zick_homsy_rows_rerun_replace_and_the_rest_are_marked_earlier():
+    # validation/flow.py --zh-fractions/--zh-resolutions with --json: the rows run replace the
+    # file's rows of the same fraction and resolution; the rows kept from before the
+    # convergence field say they are from the earlier scheme, and so does an order using one
+    old = [{"c": 0.125, "cells_per_d": 8.06, "err": -0.0087, "K": 4.25},
+           {"c": 0.125, "cells_per_d": 16.13, "err": 0.0046, "K": 4.31},
+           {"c": 0.5236, "cells_per_d": 8.0, "err": -0.0186, "K": 41.3}]
+    new = [{"c": 0.125, "resolution": 8, "cells_per_d": 8.06, "err": -0.0088, "K": 4.254,
+            "convergence": vf.CURRENT}]
+    rows = vf._zh_merge(old, new)
+    assert [(z["c"], z["resolution"]) for z in rows] == [(0.125, 8), (0.125, 16), (0.5236, 8)]
+    assert rows[0] is new[0] and rows[1]["convergence"] == rows[2]["convergence"] == vf.EARLIER
+    assert rows[1]["order_note"] == "from a row of the earlier scheme"
+    assert rows[1]["order"] == pytest.approx(np.log(0.0088 / 0.0046) / np.log(16.13 / 8.06))
+    assert vf._zh_ladder((0.5236,), (16, 8), False) == [(0.5236, 8), (0.5236, 16)]
+
+
+@pytest.mark.parametrize("args, flag", [(["--zh-fractions", "0.3"], "--zh-fractions"),
+                                        (["--zh-resolutions", "2,8"], "--zh-resolutions"),
+                                        (["--column-resolutions", "8,x"],
+                                         "--column-resolutions")])
+def test_validation_options_refuse_bad_values_in_one_line(args, flag):
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "validation", "flow.py"), *args],
+                       capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert p.returncode == 2 and flag in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1
+
+
 def test_zick_homsy_dilute_array_at_8_cells():
     r = vf.sphere_array(0.125, 8, tol=1e-7)
     assert abs(r["err"]) <= 0.02
@@ -88,6 +116,38 @@ def test_even_mass_correction_leaks_through_a_thin_wall():
     # mass crosses it (local correction)
     r2 = solve(geo, [0.0, F, 0.0], tol=1e-10, max_steps=4000)
     assert abs(r2.U_nodes[1]) > 1e-3 * F and abs(r2.U[1]) < 1e-6 * F
+
+
+def _slot(thickness):
+    # a slot (fluid |y - 2| < thickness / 2) cut through a solid block, beside an open channel
+    # (x in (3.5, 5.5)); a slot thinner than a cell leaves its inner nodes with every link
+    # that has a component along y cut
+    grid = Grid((0.0, 0.0, 0.0), 1.0, (6, 6, 3), (True, True, True))
+
+    def phi(p):
+        dx = np.mod(p[:, 0] - 4.5 + 3.0, 6.0) - 3.0
+        dy = np.mod(p[:, 1] - 2.0 + 3.0, 6.0) - 3.0
+        return np.maximum(1.0 - np.abs(dx), 0.5 * thickness - np.abs(dy))
+    return build_geometry(grid, phi)
+
+
+def test_the_period_2_mode_lives_on_nodes_enclosed_along_the_force():
+    # (peclet.flow.solver, "Its source"): the collision conserves such a node's momentum along
+    # the force and bounce-back reverses it, so the wall force alternates step by step and
+    # barely decays; the two-step means still close the balance. A slot 3 cells thick: none.
+    from peclet.flow.lattice import C
+    along = C[:, 1] != 0
+    geo = _slot(0.8)
+    enclosed = np.all(geo.nb[along] < 0, axis=0)
+    assert enclosed.sum() == 6
+    r1 = solve(geo, [0.0, 1e-6, 0.0], tol=1e-30, max_steps=200, check_every=50)
+    r2 = solve(geo, [0.0, 1e-6, 0.0], tol=1e-30, max_steps=2000, check_every=50)
+    assert r1.parity_swing > 0.2 and r2.parity_swing > 0.98 * r1.parity_swing
+    assert abs(r2.balance - 1.0) < 1e-8
+    thick = _slot(2.8)
+    assert not np.all(thick.nb[along] < 0, axis=0).any()
+    r3 = solve(thick, [0.0, 1e-6, 0.0], tol=1e-30, max_steps=200, check_every=50)
+    assert r3.parity_swing < 1e-3 * r1.parity_swing
 
 
 def test_open_axis_without_walls_is_refused():
@@ -158,6 +218,12 @@ def test_cli_flow_writes_real_files(tiny_pack, tmp_path):
     assert len(res["runs"]) == 2 and res["richardson"]["k0"] > 0
     r8 = res["runs"][1]
     assert 0.1 < r8["eps"] < 0.9 and r8["k_D2"] > 0 and r8["converged"]
+    # a box pack along y: k from the body force over the wrapped window's whole period (its
+    # seam included; peclet.flow.permeability), the force balance its check
+    assert r8["dpdl_source"].startswith("body force (whole period of the wrapped window")
+    assert r8["k_D2"] == pytest.approx(r8["k_D2_period"], rel=1e-12)
+    assert abs(r8["solid_drag_balance"] - 1.0) < 1e-4
+    assert "wall force / body force" in p.stdout
     v = read_vti(str(out / "velocity.vti"))
     nx, ny, nz = v["dims"]
     assert v["velocity"].shape == (nz, ny, nx, 3)

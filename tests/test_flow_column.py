@@ -140,16 +140,26 @@ def test_two_step_means_cancel_the_period_2_mode(column_bed):
     assert f.parity_swing > 100 * abs(f.balance - 1.0)
 
 
-def test_cli_runs_a_column_section(column_bed, tmp_path):
+def test_cli_runs_a_grid_study_on_a_column_section(column_bed, tmp_path):
+    # peclet flow --resolutions on a column section: each resolution a section with its wall,
+    # k extrapolated (two resolutions: order 2 assumed; validation/flow.py runs three)
     out = tmp_path / "flow"
-    p = subprocess.run([sys.executable, "-m", "peclet.cli", "flow", column_bed, "--resolution",
-                        "D/5", "--out", str(out), "--quiet", "--tol", "1e-5"],
-                       capture_output=True, text=True, timeout=600, cwd=ROOT)
+    p = subprocess.run([sys.executable, "-m", "peclet.cli", "flow", column_bed,
+                        "--resolutions", "5,6", "--out", str(out), "--quiet", "--tol", "1e-5"],
+                       capture_output=True, text=True, timeout=900, cwd=ROOT)
     assert p.returncode == 0, p.stderr
     assert "dP/L / Eisfeld-Schnitzlein (wall)" in p.stdout and "column D_t / d_p" in p.stdout
-    run = json.loads((out / "results.json").read_text())["runs"][0]
-    assert run["container"] == "column" and "results.json" in run["container_source"]
-    assert run["k_D2"] > 0 and run["converged"] and run["ergun_wall_ratio"] > 0
+    assert "k extrapolated" in p.stdout
+    res = json.loads((out / "results.json").read_text())
+    assert [r["resolution"] for r in res["runs"]] == [5.0, 6.0]
+    for run in res["runs"]:
+        assert run["container"] == "column" and "results.json" in run["container_source"]
+        assert run["k_D2"] > 0 and run["converged"] and run["ergun_wall_ratio"] > 0
+        assert run["dpdl_source"].startswith("body force minus the pressure slope")
+        assert abs(run["solid_drag_balance"] - 1.0) < 1e-4
+    k5, k6 = (r["k_D2"] for r in res["runs"])
+    ext = res["richardson"]
+    assert ext["assumed_p"] and ext["k0"] == pytest.approx(k6 + (k6 - k5) / ((6 / 5) ** 2 - 1))
 
 
 def test_bad_column_input(column_bed):

@@ -3,6 +3,12 @@
     peclet flow pall_ring_pack.npz --resolution D/16 --out flow/
     peclet flow pack.npz --resolutions 12,16,24 --out flow/      (grid study + Richardson)
     peclet flow bed/pack.npz --resolution D/12 --out flow/       (a column: its section)
+    peclet flow bed/pack.npz --resolutions 8,12,16 --out flow/   (the section's grid study)
+
+A box pack along y (the default) takes k from the body force over the wrapped window's whole
+period, its seam included, and prints the fit away from the seam beside it; along x or z the
+body force is exact (peclet.flow.permeability, "Where dP/L comes from"); the force balance
+(wall force / body force) is the check for both.
 
 A pack made in a column (``peclet pack --container column:N``) runs as a section of the bed
 with the column's wall (read from the results.json beside the pack, or given by --container):
@@ -218,6 +224,7 @@ def table(rows, study=None):
             ("column D_t / d_p", "D_t_over_d_p", "{:.3f}"),
             ("porosity, core (> 1 D from wall)", "eps_core", "{:.4f}"),
             ("k whole period, seam incl. (D^2)", "k_D2_period", "{:.5g}"),
+            ("k away from the seam, fit (D^2)", "k_D2_seam_free", "{:.5g}"),
             ("seam share of the drive", "seam_share", "{:+.4f}"),
             ("  its standard error", "seam_share_se", "{:.4f}"),
             ("Eisfeld-Schnitzlein A_w", "A_w", "{:.4f}"),

@@ -57,10 +57,41 @@ drag); B_w < 1 its loose packing (the inertial term, negligible at the default R
 Also reported: D_t / d_p, the wall's share of the drag (links whose crossing is on the wall),
 and the core porosity (nodes more than 1 D from the wall).
 
-The flow is driven along ``axis`` by a uniform body force, so dP/L = rho g (the body force
-acts on the fluid like a mean pressure gradient; a column section measures it away from the
-seam, above). Lengths are in the element diameter D (the
-pack's unit); the lattice spacing is h = D / resolution.
+**Where dP/L comes from.** The flow is driven along ``axis`` by a uniform body force density
+rho g on the fluid. Where the structure is periodic along the flow this is exact: write the
+pressure as p = P - rho g . x with P periodic (it must be, in a periodic domain); the momentum
+equation of p with the body force is that of P driven by a mean pressure gradient dP/L = rho g,
+so k = mu U / (rho g) with no approximation beyond the lattice's. That holds for a box pack
+along x or z (the pack's own periodic directions; the wrapped window's seam then lies along the
+flow, a layer of the structure like any other), for the mirrored window, and for the
+validation's sphere arrays. Its check is the force balance: at steady state the walls take the
+whole body force, ``solid_drag_balance`` = wall force / body force (the solver's two-step mean
+``balance``), 1 to the convergence tolerance (1e-4), reported for every pack, box or column.
+
+Along y the wrapped window is not periodic in the pack: the seam carries a pressure jump of its
+own, so mu U / (rho g) is the whole *period's* k, the seam's excess resistance included. A
+column section takes dP/L from the pressure slope away from the seam (above). A box pack keeps
+the body force (``k_D2`` = ``k_D2_period``, ``dpdl_source`` says so) and reports the seam-free
+estimate beside it (``k_D2_seam_free``, ``seam_share`` and its standard error,
+``seam_share_by_margin``: the share fitted beyond 0.5, 1 and 1.5 margins), because on box packs
+the fit is not the better figure. Measured at D/8, with k along x and z (exact, no seam across
+the flow; a poured bed may be anisotropic, so this brackets the seam's effect rather than
+measuring it): the page's 48-ring pack, k_x = 0.005728, k_z = 0.005727 D^2, k_y = 0.005377
+whole period (-6%) and 0.006763 seam-free (+18%; seam share 0.13-0.20 for margins 0.25-1.5 D,
+the fit's standard error 0.011; the mirrored window, whose k along y is too high, was measured
+8% above the whole-period figure, i.e. below the seam-free one); a rained 150-sphere box:4
+pack, k_x = 0.000873, k_z = 0.000882, k_y = 0.000844 whole period (-4%) and 0.000916 seam-free
+(+4%; share 0.063-0.088). Beyond the margins the window leaves 2-5 D of planes, over which the
+plane pressure wanders from a line at the pore scale by more than the fit's standard error
+says; so the seam-free figure is no closer to the lateral ones than the whole period's, which
+sat 4-6% below them on these packs. A column section has no lateral direction to check against;
+``seam_share_by_margin`` shows its fit's spread there too, and it is the largest uncertainty of
+a column's k: on a column:5 section of 150 rained spheres (window 3.8 D) the share is 0.07,
+0.11 and 0.17 beyond 0.5, 1 and 1.5 D at D/8, D/12 and D/16 alike, so k moves by -4% / +6% with
+the margin, against 0.3% between D/12 and D/16 (validation/flow.py, ``column``).
+
+Lengths are in the element diameter D (the pack's unit); the lattice spacing is
+h = D / resolution.
 
 Outputs (:class:`PackFlow`): Darcy permeability ``k = mu U / (dP/L)`` (U the superficial
 velocity along the axis: the mass flux over uncut links per cell, see
@@ -122,7 +153,8 @@ class PackFlow:
     (D, NaN without an envelope); kozeny; ergun_ratio_sauter, ergun_ratio_envelope; drag (N,)
     force on each element along the axis (lattice units, summed over its pieces in the
     domain), drag_cv (std/mean over elements wholly inside the window); solid_drag_balance
-    (total wall force / total body force, 1 at steady state); flow: the
+    (total wall force / total body force, 1 at steady state: the check that the body force is
+    the drive k is taken from, box or column); flow: the
     :class:`~peclet.flow.solver.FlowResult`; info: the domain's parameters.
     """
 
@@ -366,6 +398,19 @@ def seam_fit(flow, info, margin):
     return out
 
 
+def _seam_shares(flow, info, margin, g):
+    """The seam's share of the drive fitted beyond 0.5, 1 and 1.5 times ``margin`` (those
+    with at least 4 planes): {margin in D: share}. Its spread shows how far the plane
+    pressure wanders from a line (pore-scale structure) beyond what the fit's standard error
+    says."""
+    out = {}
+    for m in (0.5 * margin, margin, 1.5 * margin):
+        f = seam_fit(flow, info, m)
+        if math.isfinite(f["slope"]):
+            out[f"{m:g}"] = f["slope"] / g
+    return out
+
+
 def eisfeld_schnitzlein(U, eps, d_p, D_t, mu, rho=1.0, constants=ES_SPHERES):
     """dP/L of Eisfeld & Schnitzlein's (2001) wall-corrected Ergun equation (module
     docstring) at superficial velocity U for voidage eps, particle diameter d_p, column
@@ -391,7 +436,8 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
     from an estimate of k and then reported as run; 0.01 keeps inertia out of a Darcy
     permeability). container: see :func:`pack_container` (None reads the one ``peclet pack``
     recorded beside the pack file). seam_margin: distance (D, >= 0) from a wrapped window's
-    seam beyond which the pressure is fitted (module docstring). balance_tol: see
+    seam beyond which the pressure is fitted (module docstring: a column section's dP/L; a box
+    pack along y keeps the body force's and reports the fitted one beside it). balance_tol: see
     :func:`peclet.flow.solver.solve`. Other arguments: see :func:`pack_domain` and
     :func:`peclet.flow.solver.solve`. Returns a :class:`PackFlow`.
     """
@@ -458,11 +504,23 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
         info.update({"seam_margin_D": seam_margin, "seam_planes": seam["planes"],
                      "seam_share": seam["slope"] / g,
                      "seam_share_se": seam["slope_se"] / g,
-                     "k_D2_seam_free": nu * U / (g - seam["slope"]) / res ** 2})
+                     "k_D2_seam_free": nu * U / (g - seam["slope"]) / res ** 2,
+                     "seam_share_by_margin": _seam_shares(fr, info, seam_margin, g)})
         if cont is not None and math.isfinite(seam["slope"]):
             drive = g - seam["slope"]
-    info["dpdl_source"] = ("body force minus the pressure slope away from the seam"
-                           if drive != g else "body force (whole period)")
+            info["dpdl_source"] = "body force minus the pressure slope away from the seam"
+        elif cont is not None:
+            info["dpdl_source"] = (f"body force (whole period, seam included: fewer than 4 "
+                                   f"lattice planes lie {seam_margin:g} D or more from the "
+                                   "seam)")
+        else:
+            info["dpdl_source"] = ("body force (whole period of the wrapped window, seam "
+                                   "included; k_D2_seam_free beside it)")
+    elif info["y_mode"] == "wrap":
+        info["dpdl_source"] = ("body force (exact: the structure is periodic along the flow; "
+                               "the seam lies along it)")
+    else:
+        info["dpdl_source"] = "body force (exact for the mirrored period)"
     k_lu = nu * U / drive
     k_D2 = k_lu / res ** 2
     drag, inside, wall_drag = _element_drag(pk, fr, grid, ax, info, cont)

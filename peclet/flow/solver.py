@@ -53,12 +53,36 @@ Why two-step means: packs (not the simple validation geometries) carry a period-
 barely decays: the fluid's total momentum alternates by a fraction of a percent of the drive
 from one step to the next (measured: 0.34-0.36% of n|F| on rained sphere column sections at
 D/8, its amplitude falling by only ~5e-7 relative per step; not seen in the empty pipe or the
-sphere arrays; its source in the wall rule is not isolated). A check every ``check_every``
-steps sees it at one phase only: U looks converged to 1e-7 while the wall force of that
-phase is 0.36% off (the "0.9995" of earlier runs). The two-step means cancel it (B then
-closes to ~1e-8 there), and the returned fields are the means over the last two steps (the
-run takes one step more to have them); ``parity_swing`` reports the mode's amplitude (in
-units of B).
+sphere arrays). A check every ``check_every`` steps sees it at one phase only: U looks
+converged to 1e-7 while the wall force of that phase is 0.36% off (the "0.9995" of earlier
+runs). The two-step means cancel it (B then closes to ~1e-8 there), and the returned fields
+are the means over the last two steps (the run takes one step more to have them);
+``parity_swing`` reports the mode's amplitude (in units of B).
+
+Its source (located on a rained column section, column:4, 90 spheres, at D/6, from the
+difference of two consecutive steps): fluid nodes whose uncut links all lie in one plane, so
+that their momentum along that plane's normal e meets only wall links; they are slivers of
+fluid less than two cells thick, in the wedges where elements touch each other, the wall or the
+floor. Mostly e is the force's direction: the 18 nodes there with every link that has a
+component along the force cut carry 95% of the mode (of |u(t+1) - u(t)|^2); two nodes with a
+diagonal e carry most of the rest, and e across the force gets only ~1% of the peak. Such a
+momentum goes to a wall and comes back each step: the collision conserves it and bounce-back
+reverses it, so it flips sign every step: ``j(t+1) = -(j(t) + F.e)`` for halfway bounce-back
+(the rule such a node gets where q < 1/2 and no fluid node lies behind it), an eigenvalue of
+exactly -1 about the fixed point u.e = 0; the interpolated rule for q >= 1/2 multiplies it by
+``1 - 1/(2 q_i) - 1/(2 q_o)`` (damping it unless q is near 1/2), and the parabolic correction
+shifts it slightly, whence the slow decay. The start from rest sets its amplitude (about F/2
+per node). The alternation does not leave the node: its uncut links are normal to e, and their
+equilibria see u.e only through (u.e)^2, nearly the same at both phases (exactly so about u.e =
+0); the two-step difference of u at those nodes is along e, and on their neighbours below 1e-4
+of its peak. Such a node carries no flux along e, so U and k do not see the mode; only the wall
+force and the total momentum do, and the two-step means cancel it. Neither the magic parameter
+(the collision conserves the node's momentum at any rates) nor the mass correction (it adds no
+momentum) enters; plain Bouzidi without the parabolic correction keeps the mode, and starting
+from populations at u = 0 halves it (both measured). (The bulk scheme has an exact period-2
+invariant of its own, the momentum along an axis staggered along that axis, eigenvalue -1 at
+wavevector pi there for any viscosity and magic parameter; the measured mode is not it: it
+shows no staggering between neighbours.) tests/test_flow.py builds one such fluid layer.
 """
 from __future__ import annotations
 
