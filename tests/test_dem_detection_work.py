@@ -165,7 +165,7 @@ def _forced_grids(geo, pos):
 
 
 @pytest.mark.parametrize("periodic", [False, True])
-def test_parallel_broad_phase_gives_the_serial_arrays(periodic):
+def test_parallel_broad_phase_gives_the_serial_arrays(periodic, monkeypatch):
     rng = np.random.default_rng(5)
     n = 5000
     box_l = 20.0
@@ -175,9 +175,17 @@ def test_parallel_broad_phase_gives_the_serial_arrays(periodic):
     lo, cell, dims, box = broadphase.grid_for(pos, 2 * 0.5 + 0.1, np.zeros(3),
                                               np.full(3, box_l), per, 4 * n)
     a = broadphase.find_pairs(pos, radius, 0.1, lo, cell, dims, box, per)
-    b = broadphase.find_pairs_parallel(pos, radius, 0.1, lo, cell, dims, box, per)
+    assert n >= broadphase.PARALLEL_BODIES
+    b = broadphase.pairs(pos, radius, 0.1, lo, cell, dims, box, per)
     assert len(a[0]) > 1000
     for x, y in zip(a, b):
+        assert x.dtype == y.dtype and np.array_equal(x, y)
+    # workers whose buffers are too small say so, and the pass is repeated with larger ones
+    assert not broadphase.find_pairs_parallel(pos, radius, 0.1, lo, cell, dims, box, per,
+                                              np.int64(2))[3]
+    monkeypatch.setattr(broadphase, "ROW_SLOTS", 1)
+    c = broadphase.pairs(pos, radius, 0.1, lo, cell, dims, box, per)
+    for x, y in zip(a, c):
         assert np.array_equal(x, y)
 
 

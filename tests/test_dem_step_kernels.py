@@ -2,12 +2,16 @@
 must not depend on how its glue is written): the warm start's initial impulses
 (contacts.WarmStart.initial: search the cached keys, project the world tangential impulse on
 this step's tangents, clamp into the Coulomb cone), the periodic wrap (domain.wrap_into) and
-the lever arms (contacts.lever_arms)."""
+the lever arms (contacts.lever_arms); and the parallel twins of serial kernels (the warm
+start's lookups and its store, the narrow phase's gather, the world inverse inertias) against
+them."""
 import numpy as np
 
+from peclet.dem import contacts, narrowphase
 from peclet.dem.contacts import Contacts, WarmStart, lever_arms
 from peclet.dem.domain import wrap_into
-from peclet.dem.solver import tangent_basis
+from peclet.dem.manifold import MAX_PER_TASK
+from peclet.dem.solver import tangent_basis, world_inv_inertias, world_inv_inertias_parallel
 
 
 def _array_form(old_keys, old_lam, keys, t1, t2, mu):
@@ -91,3 +95,76 @@ def test_the_lever_arms_have_the_bits_of_the_array_form():
     want_b = np.where(isw[:, None], 0.0, point - (pos[np.where(isw, 0, b)] + shift))
     assert ra.tobytes() == (point - pos[a]).tobytes()
     assert rb.tobytes() == want_b.tobytes()
+
+
+def test_parallel_warm_start_lookups_give_the_serial_impulses():
+    rng = np.random.default_rng(8)
+    k_old = np.unique(rng.integers(0, 200_000, size=60_000))
+    lam_old = rng.normal(size=(len(k_old), 4))
+    lam_old[:, 0] = np.abs(lam_old[:, 0])
+    n = 50_000
+    keys = rng.integers(0, 200_000, size=n)
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    t1, t2 = tangent_basis(normal)
+    mu = rng.choice([0.0, 0.5, 2.0], size=n)
+    assert n >= contacts.PARALLEL_INITIAL_CONTACTS
+    got = WarmStart(k_old, lam_old).initial(keys, t1, t2, mu)
+    want = contacts._initial_impulses(k_old, lam_old, keys, t1, t2, mu)
+    assert got.tobytes() == want.tobytes()
+    assert got.tobytes() == _array_form(k_old, lam_old, keys, t1, t2, mu).tobytes()
+
+
+def test_parallel_gather_gives_the_serial_contacts():
+    rng = np.random.default_rng(9)
+    ntask = 30_000
+    tasks = narrowphase.Tasks(rng.integers(0, 5000, ntask), rng.integers(-2, 5000, ntask),
+                              rng.normal(size=(ntask, 3)), rng.random(ntask))
+    cap = ntask * MAX_PER_TASK
+    slots = narrowphase.Slots(rng.integers(0, 5, ntask), rng.normal(size=(cap, 3)),
+                              rng.normal(size=(cap, 3)), rng.normal(size=cap),
+                              rng.integers(0, 1 << 30, cap),
+                              np.arange(ntask + 1, dtype=np.int64) * MAX_PER_TASK)
+    assert ntask >= narrowphase.PARALLEL_GATHER_TASKS
+    a = narrowphase.gather(tasks, slots)
+    b = narrowphase.gather_parallel(tasks, slots)
+    assert len(a[0]) == int(slots.count.sum())
+    # the array form: each task's used slots, in task order
+    rows = np.concatenate([t * MAX_PER_TASK + np.arange(c) for t, c in
+                           enumerate(slots.count)])
+    task = np.repeat(np.arange(ntask), slots.count)
+    want = (tasks.a[task], tasks.b[task], tasks.shift[task], slots.point[rows],
+            slots.normal[rows], slots.gap[rows], slots.feat[rows])
+    for x, y in zip(a, want):
+        assert x.tobytes() == y.tobytes()
+    for x, y in zip(a, b):
+        assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+def test_parallel_world_inverse_inertias_give_the_serial_ones():
+    rng = np.random.default_rng(10)
+    q = rng.normal(size=(5000, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    inv = rng.random((5000, 3))
+    inv[::7] = 0.0
+    assert world_inv_inertias_parallel(q, inv).tobytes() == world_inv_inertias(q, inv).tobytes()
+
+
+def test_the_parallel_warm_start_store_gives_the_array_forms_cache():
+    rng = np.random.default_rng(11)
+    n = 40_000
+    keys = rng.permutation(n * 3)[:n].astype(np.int64)
+    keys[::50] = keys[1::50]                        # some repeated keys: the stable order
+    lam = rng.normal(size=(n, 3))
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    t1, t2 = tangent_basis(normal)
+    assert n >= contacts.PARALLEL_INITIAL_CONTACTS
+    ws = WarmStart()
+    ws.store(keys, lam, t1, t2)
+    world = np.empty((n, 4))
+    world[:, 0] = lam[:, 0]
+    world[:, 1:] = lam[:, 1:2] * t1 + lam[:, 2:3] * t2
+    o = np.argsort(keys, kind="stable")
+    assert ws.keys.dtype == np.int64 and ws.keys.tobytes() == keys[o].tobytes()
+    assert ws.lam.tobytes() == world[o].tobytes()

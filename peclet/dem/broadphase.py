@@ -7,8 +7,9 @@ interact through two images). Non-periodic axes need no domain: the grid spans t
 
 Count pass, then fill pass into exactly-sized arrays; within a body's row the partners are
 sorted by index, so the list is ordered by (i, j). Rows are independent: a large bed deals them
-to parallel workers (:func:`pairs`), a small one stays serial (a parallel launch costs more than
-a few hundred rows); both give the same arrays.
+to parallel workers (:func:`pairs`), which find and write their rows in one pass into buffers
+of their own and then copy them into place; a small one stays serial (a parallel launch costs
+more than a few hundred rows); both give the same arrays.
 """
 from __future__ import annotations
 
@@ -22,6 +23,9 @@ from numba import njit, prange
 PARALLEL_BODIES = 4000
 #: Row workers of the parallel path (rows interleaved among them: loads even out).
 ROW_WORKERS = 32
+#: Partner slots per row that a worker of the parallel path reserves at first (it finds and
+#: writes its rows in one pass; when one runs out the pass starts again with twice as many).
+ROW_SLOTS = 16
 
 
 @njit(cache=True)
@@ -98,10 +102,15 @@ def image_shifts(pa, pb, pos, box, periodic):
 
 @njit(cache=True)
 def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               out_j, out_shift, write, base, ax, ay, az, d):
-    """Visit body i's partners j > i; count them, and if ``write`` store them from ``base``.
+               out_j, out_shift, write, base, ax, ay, az, d, cpos, crad):
+    """Visit body i's partners j > i; count them, and if ``write`` store them from ``base``
+    (those that fit below ``len(out_j)``: the count says whether all did).
     ``ax``, ``ay``, ``az`` (3,) int64 and ``d`` (3,) float64 are scratch (allocated once per
-    call of :func:`find_pairs`: an allocation per body cost a third of the phase)."""
+    call of :func:`find_pairs`: an allocation per body cost a third of the phase). ``cpos``,
+    ``crad``: the positions and radii in cell order (:func:`_cell_sorted`), so that a cell's
+    candidates are read from consecutive rows; a cell's items ascend, so it is read from its
+    last down to the first j <= i."""
+    limit = out_j.shape[0]
     nx = _axis_cells(coords[i, 0], dims[0], periodic[0], ax)
     ny = _axis_cells(coords[i, 1], dims[1], periodic[1], ay)
     nz = _axis_cells(coords[i, 2], dims[2], periodic[2], az)
@@ -110,28 +119,42 @@ def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, c
         for b in range(ny):
             for c in range(nz):
                 k = (az[c] * dims[1] + ay[b]) * dims[0] + ax[a]
-                for s in range(cell_start[k], cell_start[k + 1]):
+                for s in range(cell_start[k + 1] - 1, cell_start[k] - 1, -1):
                     j = items[s]
                     if j <= i:
-                        continue
+                        break
                     r2 = 0.0
                     for e in range(3):
-                        v = _nearest(pos[j, e] - pos[i, e], box[e], periodic[e])
+                        v = _nearest(cpos[s, e] - pos[i, e], box[e], periodic[e])
                         d[e] = v
                         r2 += v * v
-                    cut = radius[i] + radius[j] + margin
+                    cut = radius[i] + crad[s] + margin
                     if r2 < cut * cut:
-                        if write:
+                        if write and base + cnt < limit:
                             out_j[base + cnt] = j
                             for e in range(3):
-                                out_shift[base + cnt, e] = d[e] - (pos[j, e] - pos[i, e])
+                                out_shift[base + cnt, e] = d[e] - (cpos[s, e] - pos[i, e])
                         cnt += 1
     return cnt
 
 
 @njit(cache=True)
+def _cell_sorted(pos, radius, items):
+    """Positions and radii in cell order: row s is body items[s]'s."""
+    n = items.shape[0]
+    cpos = np.empty((n, 3))
+    crad = np.empty(n)
+    for s in range(n):
+        j = items[s]
+        crad[s] = radius[j]
+        for e in range(3):
+            cpos[s, e] = pos[j, e]
+    return cpos, crad
+
+
+@njit(cache=True)
 def _count_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                counts):
+                counts, cpos, crad):
     """counts[i] for the rows i = k, k + nw, ... (each row only written by its owner)."""
     ax = np.empty(3, np.int64)
     ay = np.empty(3, np.int64)
@@ -142,12 +165,13 @@ def _count_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, ite
     zero = np.int64(0)
     for i in range(k, pos.shape[0], nw):
         counts[i] = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
-                               coords, dummy_j, dummy_s, False, zero, ax, ay, az, d)
+                               coords, dummy_j, dummy_s, False, zero, ax, ay, az, d, cpos,
+                               crad)
 
 
 @njit(cache=True)
 def _fill_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               offs, pb, shift):
+               offs, pb, shift, cpos, crad):
     """Rows i = k, k + nw, ...: partners and shifts from offs[i], sorted by partner index (a
     fixed order, independent of the cell layout)."""
     ax = np.empty(3, np.int64)
@@ -156,23 +180,29 @@ def _fill_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, item
     d = np.empty(3)
     for i in range(k, pos.shape[0], nw):
         _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                   pb, shift, True, offs[i], ax, ay, az, d)
-        for u in range(offs[i] + 1, offs[i + 1]):
-            j = pb[u]
-            s0 = shift[u, 0]
-            s1 = shift[u, 1]
-            s2 = shift[u, 2]
-            w = u - 1
-            while w >= offs[i] and pb[w] > j:
-                pb[w + 1] = pb[w]
-                shift[w + 1, 0] = shift[w, 0]
-                shift[w + 1, 1] = shift[w, 1]
-                shift[w + 1, 2] = shift[w, 2]
-                w -= 1
-            pb[w + 1] = j
-            shift[w + 1, 0] = s0
-            shift[w + 1, 1] = s1
-            shift[w + 1, 2] = s2
+                   pb, shift, True, offs[i], ax, ay, az, d, cpos, crad)
+        _sort_row(pb, shift, offs[i], offs[i + 1])
+
+
+@njit(cache=True)
+def _sort_row(pb, shift, lo, hi):
+    """Insertion sort of the partners pb[lo:hi] (with their shifts) by index."""
+    for u in range(lo + 1, hi):
+        j = pb[u]
+        s0 = shift[u, 0]
+        s1 = shift[u, 1]
+        s2 = shift[u, 2]
+        w = u - 1
+        while w >= lo and pb[w] > j:
+            pb[w + 1] = pb[w]
+            shift[w + 1, 0] = shift[w, 0]
+            shift[w + 1, 1] = shift[w, 1]
+            shift[w + 1, 2] = shift[w, 2]
+            w -= 1
+        pb[w + 1] = j
+        shift[w + 1, 0] = s0
+        shift[w + 1, 1] = s1
+        shift[w + 1, 2] = s2
 
 
 @njit(cache=True)
@@ -195,38 +225,92 @@ def find_pairs(pos, radius, margin, lo, cell, dims, box, periodic):
     """Candidate pairs. Returns (a (P,), b (P,), shift (P, 3)) with a < b, sorted by (a, b);
     ``pos[b] + shift`` is the image of b nearest to a."""
     cell_start, items, coords = build_cells(pos, lo, cell, dims)
+    cpos, crad = _cell_sorted(pos, radius, items)
     counts = np.zeros(pos.shape[0], np.int64)
     one = np.int64(1)
     zero = np.int64(0)
     _count_rows(zero, one, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                counts)
+                counts, cpos, crad)
     offs, pb, shift, pa = _rows(counts)
     _fill_rows(zero, one, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               offs, pb, shift)
+               offs, pb, shift, cpos, crad)
     return pa, pb, shift
+
+
+@njit(cache=True)
+def _scan_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
+               counts, rowpos, buf_j, buf_s, cpos, crad):
+    """Rows i = k, k + nw, ... in one pass: each row's partners, sorted by index, with their
+    shifts into this worker's buffers ``buf_j``/``buf_s`` from ``rowpos[i]``, ``counts[i]``
+    their number. Returns the slots used, or -1 when the buffers are too small."""
+    ax = np.empty(3, np.int64)
+    ay = np.empty(3, np.int64)
+    az = np.empty(3, np.int64)
+    d = np.empty(3)
+    cap = buf_j.shape[0]
+    used = np.int64(0)
+    for i in range(k, pos.shape[0], nw):
+        cnt = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
+                         coords, buf_j, buf_s, True, used, ax, ay, az, d, cpos, crad)
+        if used + cnt > cap:
+            return np.int64(-1)
+        _sort_row(buf_j, buf_s, used, used + cnt)
+        counts[i] = cnt
+        rowpos[i] = used
+        used += cnt
+    return used
+
+
+@njit(cache=True)
+def _copy_rows(k, nw, counts, rowpos, buf_j, buf_s, offs, pb, shift):
+    """Rows i = k, k + nw, ... from this worker's buffers to their place in the list."""
+    for i in range(k, counts.shape[0], nw):
+        for u in range(counts[i]):
+            pb[offs[i] + u] = buf_j[rowpos[i] + u]
+            for e in range(3):
+                shift[offs[i] + u, e] = buf_s[rowpos[i] + u, e]
 
 
 @njit(cache=True, parallel=True)
-def find_pairs_parallel(pos, radius, margin, lo, cell, dims, box, periodic):
-    """:func:`find_pairs` with the rows dealt to ROW_WORKERS parallel workers (interleaved):
-    every row is written by its owner alone, so the result is the same array, bit for bit."""
+def find_pairs_parallel(pos, radius, margin, lo, cell, dims, box, periodic, slots):
+    """:func:`find_pairs` with the rows dealt to ROW_WORKERS parallel workers (interleaved),
+    in one pass: each worker writes its rows, sorted, into its own buffer of ``slots`` pairs,
+    and the rows are then copied to their places. Every row is written by its owner alone, so
+    the result is the same arrays, bit for bit. Returns (a, b, shift, ok): ok False (and empty
+    arrays) when a worker's buffer was too small."""
     cell_start, items, coords = build_cells(pos, lo, cell, dims)
-    counts = np.zeros(pos.shape[0], np.int64)
+    cpos, crad = _cell_sorted(pos, radius, items)
+    n = pos.shape[0]
+    counts = np.zeros(n, np.int64)
+    rowpos = np.zeros(n, np.int64)
+    buf_j = np.empty((ROW_WORKERS, slots), np.int64)
+    buf_s = np.empty((ROW_WORKERS, slots, 3))
+    used = np.empty(ROW_WORKERS, np.int64)
     nw = np.int64(ROW_WORKERS)
     for k in prange(ROW_WORKERS):
-        _count_rows(np.int64(k), nw, pos, radius, margin, box, periodic, dims, cell_start,
-                    items, coords, counts)
+        used[k] = _scan_rows(np.int64(k), nw, pos, radius, margin, box, periodic, dims,
+                             cell_start, items, coords, counts, rowpos, buf_j[k], buf_s[k],
+                             cpos, crad)
+    for k in range(ROW_WORKERS):
+        if used[k] < 0:
+            return (np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3)), False)
     offs, pb, shift, pa = _rows(counts)
     for k in prange(ROW_WORKERS):
-        _fill_rows(np.int64(k), nw, pos, radius, margin, box, periodic, dims, cell_start,
-                   items, coords, offs, pb, shift)
-    return pa, pb, shift
+        _copy_rows(np.int64(k), nw, counts, rowpos, buf_j[k], buf_s[k], offs, pb, shift)
+    return pa, pb, shift, True
 
 
 def pairs(pos, radius, margin, lo, cell, dims, box, periodic):
     """Candidate pairs (see :func:`find_pairs`), in parallel from PARALLEL_BODIES bodies."""
-    run = find_pairs_parallel if len(pos) >= PARALLEL_BODIES else find_pairs
-    return run(pos, radius, margin, lo, cell, dims, box, periodic)
+    if len(pos) < PARALLEL_BODIES:
+        return find_pairs(pos, radius, margin, lo, cell, dims, box, periodic)
+    slots = ROW_SLOTS * (len(pos) // ROW_WORKERS + 1)
+    while True:
+        pa, pb, shift, ok = find_pairs_parallel(pos, radius, margin, lo, cell, dims, box,
+                                                periodic, np.int64(slots))
+        if ok:
+            return pa, pb, shift
+        slots *= 2
 
 
 def grid_for(pos, cutoff, domain_lo, domain_hi, periodic, max_cells):

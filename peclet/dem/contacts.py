@@ -16,7 +16,7 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from peclet.dem import broadphase, distgrid, narrowphase
 from peclet.dem.reuse import Reuse
@@ -84,8 +84,10 @@ class Detector:
         self._slot_arrays = None
         self._pairs = None              # (margin, positions, build radii, (pa, pb, shift))
 
-    def _slots(self, ntask):
-        need = ntask * narrowphase.MAX_PER_TASK
+    def _slots(self, tasks, kind):
+        ntask = len(tasks.a)
+        first = narrowphase.slot_room(tasks.a, tasks.b, kind)
+        need = int(first[ntask])
         if need > self.slot_capacity:
             self.slot_capacity = max(need, 2 * self.slot_capacity)
         cap = self.slot_capacity
@@ -97,7 +99,7 @@ class Detector:
             kept = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty(cap),
                     np.empty(cap, np.int64))
             self._slot_arrays = kept
-        return narrowphase.Slots(np.zeros(ntask, np.int64), *kept)
+        return narrowphase.Slots(np.zeros(ntask, np.int64), *kept, first)
 
     def _with_wall_grids(self, geo, pos, reach):
         # baked once per geometry, when the body-wall tasks first pay for it; they only spare
@@ -175,7 +177,7 @@ class Detector:
         geo = self._with_wall_grids(geo, pos, cutoff)
         t1 = time.perf_counter()
         ntask = len(tasks.a)
-        slots = self._slots(ntask)
+        slots = self._slots(tasks, geo.shape_kind[shape_of])
         scale = float(geo.shape_rad.min())
         prev, old, cur = self.reuse.prepare(geo, tasks, composed)
         if self._scratch is None or self._scratch.lab.shape[1] < geo.max_hits:
@@ -186,7 +188,9 @@ class Detector:
                                  self.reuse.delta(margin_fraction * scale), old, prev, cur,
                                  self._scratch)
         self.reuse.commit(cur)
-        c = Contacts(*narrowphase.gather(tasks, slots))
+        gather = (narrowphase.gather_parallel if ntask >= narrowphase.PARALLEL_GATHER_TASKS
+                  else narrowphase.gather)
+        c = Contacts(*gather(tasks, slots))
         t2 = time.perf_counter()
         timings["broad"] += t1 - t0
         timings["narrow"] += t2 - t1
@@ -226,6 +230,40 @@ def _lever_arms(a, b, point, shift, pos):
     return ra, rb
 
 
+def reorder(c, order):
+    """The :class:`Contacts` ``c`` rearranged: row u of the result is row ``order[u]`` of c
+    (the colour order of the coloured solve, :func:`peclet.dem.solver.colors_for`)."""
+    return Contacts(*_reorder(c.a, c.b, c.shift, c.point, c.normal, c.gap, c.feat, order))
+
+
+_REORDER_CHUNK = 1024
+
+
+@njit(cache=True, parallel=True)
+def _reorder(a, b, shift, point, normal, gap, feat, order):
+    # a gather: every row written by one task, so the same arrays at any thread count
+    n = order.shape[0]
+    ra = np.empty(n, np.int64)
+    rb = np.empty(n, np.int64)
+    rs = np.empty((n, 3))
+    rp = np.empty((n, 3))
+    rn = np.empty((n, 3))
+    rg = np.empty(n)
+    rf = np.empty(n, np.int64)
+    for ch in prange((n + _REORDER_CHUNK - 1) // _REORDER_CHUNK):
+        for u in range(ch * _REORDER_CHUNK, min(n, (ch + 1) * _REORDER_CHUNK)):
+            i = order[u]
+            ra[u] = a[i]
+            rb[u] = b[i]
+            rg[u] = gap[i]
+            rf[u] = feat[i]
+            for e in range(3):
+                rs[u, e] = shift[i, e]
+                rp[u, e] = point[i, e]
+                rn[u, e] = normal[i, e]
+    return ra, rb, rs, rp, rn, rg, rf
+
+
 def listing(c):
     """The public dict of contacts sorted by (body_a, body_b, feature); ``depth`` = -gap."""
     if c is None:
@@ -250,16 +288,40 @@ def overlap_pairs(lst):
     return {"body_a": uk[:, 0], "body_b": uk[:, 1], "depth": mx}
 
 
+#: From this many contacts the warm start's lookups run in parallel (chunks of
+#: _INITIAL_CHUNK contacts, each row written by its own contact: the same impulses).
+PARALLEL_INITIAL_CONTACTS = 20000
+_INITIAL_CHUNK = 2048
+
+
 @njit(cache=True)
 def _initial_impulses(old_keys, old_lam, keys, t1, t2, mu):
     """:meth:`WarmStart.initial`. The sums and products are NumPy's (a row sum starts from
     0.0 and adds left to right), so that the impulses keep the bits of the array form."""
     nc = keys.shape[0]
     lam = np.zeros((nc, 3))
+    _initial_range(0, nc, old_keys, old_lam, keys, t1, t2, mu, lam)
+    return lam
+
+
+@njit(cache=True, parallel=True)
+def _initial_impulses_parallel(old_keys, old_lam, keys, t1, t2, mu):
+    """:func:`_initial_impulses` over chunks of contacts in parallel (the same bits)."""
+    nc = keys.shape[0]
+    lam = np.zeros((nc, 3))
+    for ch in prange((nc + _INITIAL_CHUNK - 1) // _INITIAL_CHUNK):
+        _initial_range(ch * _INITIAL_CHUNK, min(nc, (ch + 1) * _INITIAL_CHUNK), old_keys,
+                       old_lam, keys, t1, t2, mu, lam)
+    return lam
+
+
+@njit(cache=True)
+def _initial_range(i0, i1, old_keys, old_lam, keys, t1, t2, mu, lam):
+    # contacts i0..i1-1 of _initial_impulses, into lam (zeros where no key matches)
     nk = old_keys.shape[0]
     if nk == 0:
-        return lam
-    for i in range(nc):
+        return
+    for i in range(i0, i1):
         j = np.searchsorted(old_keys, keys[i])
         if j >= nk or old_keys[j] != keys[i]:
             continue
@@ -275,7 +337,6 @@ def _initial_impulses(old_keys, old_lam, keys, t1, t2, mu):
             sc = lim / tm if tm > 0.0 else 0.0
             lam[i, 1] *= sc
             lam[i, 2] *= sc
-    return lam
 
 
 class WarmStart:
@@ -299,13 +360,36 @@ class WarmStart:
         """Initial impulses (nc, 3) (normal, along t1, along t2): the cached ones where a key
         matches (the world-frame tangential impulse projected on this step's tangents), zero
         elsewhere, each scaled into its Coulomb cone ``|lam_t| <= mu lam_n`` (``mu`` (nc,))."""
-        return _initial_impulses(self.keys, self.lam, keys, t1, t2, mu)
+        run = (_initial_impulses_parallel if len(keys) >= PARALLEL_INITIAL_CONTACTS
+               else _initial_impulses)
+        return run(self.keys, self.lam, keys, t1, t2, mu)
 
     def store(self, keys, lam, t1, t2):
         """Cache this step's impulses ``lam`` (nc, 3) in the tangent bases (t1, t2)."""
+        o = np.argsort(keys, kind="stable")
+        if len(keys) >= PARALLEL_INITIAL_CONTACTS:
+            # the same rows, each computed where it lands, by a parallel twin
+            self.keys, self.lam = _stored_rows(keys, lam, t1, t2, o)
+            return
         world = np.empty((len(keys), 4))
         world[:, 0] = lam[:, 0]
         world[:, 1:] = lam[:, 1:2] * t1 + lam[:, 2:3] * t2
-        o = np.argsort(keys, kind="stable")
         self.keys = keys[o]
         self.lam = world[o]
+
+
+@njit(cache=True, parallel=True)
+def _stored_rows(keys, lam, t1, t2, o):
+    """(keys[o], world[o]) of :meth:`WarmStart.store`, world = (lam_n, lam_1 t1 + lam_2 t2)
+    (NumPy's element-wise products and sum: the same bits), each row written once."""
+    n = o.shape[0]
+    out_k = np.empty(n, np.int64)
+    out = np.empty((n, 4))
+    for ch in prange((n + _INITIAL_CHUNK - 1) // _INITIAL_CHUNK):
+        for u in range(ch * _INITIAL_CHUNK, min(n, (ch + 1) * _INITIAL_CHUNK)):
+            i = o[u]
+            out_k[u] = keys[i]
+            out[u, 0] = lam[i, 0]
+            for e in range(3):
+                out[u, 1 + e] = lam[i, 1] * t1[i, e] + lam[i, 2] * t2[i, e]
+    return out_k, out

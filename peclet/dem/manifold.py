@@ -41,6 +41,16 @@ def sort_hits(hits, n0, n1):
 @njit(cache=True)
 def reduce_hits(hits, nh, lab, reps, tol2, touch, base, out_point, out_normal, out_gap, out_feat):
     """Reduce a task's hits to at most MAX_PER_TASK contacts written from slot ``base``."""
+    if nh <= 1:
+        # no hit, or one (every task with a sphere in it): kept as it is, which is what the
+        # reduction below makes of a single hit (its own group, no spread points)
+        if nh == 1:
+            for e in range(3):
+                out_point[base, e] = hits[0, e]
+                out_normal[base, e] = hits[0, 3 + e]
+            out_gap[base] = hits[0, HG]
+            out_feat[base] = np.int64(hits[0, HF])
+        return nh
     for i in range(nh):
         lab[i] = -1
     ncl = 0

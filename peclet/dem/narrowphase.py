@@ -30,7 +30,7 @@ plus the margin stays within reach, only the listed probes are tested again, wit
 exact evaluation, so the hits are again those of a scan.
 
 The hits are reduced to at most ``MAX_PER_TASK`` contacts per task (:mod:`peclet.dem.manifold`),
-written into the task's own slots.
+written into the task's own slots (one for a task with a sphere in it, which tests one point).
 
 Determinism: tasks run in parallel (fixed-size chunks dealt to a fixed number of workers),
 every task writes only its own slots; all choices break ties by the lowest index.
@@ -51,7 +51,18 @@ from peclet.dem.reuse import POSE, motion_bound, relative_pose, sort_list
 
 #: Feature ids of the second direction (b's probes in a's tree) are offset by this.
 FEATURE_DIR = 1 << 24
+#: Smallest chunk of tasks a worker takes at a time; a large task list is cut into about
+#: CHUNKS_PER_WORKER chunks per worker instead, so that each worker runs through long
+#: contiguous stretches of the tasks and their slots (chunks of 8 on the 147,000 tasks of the
+#: stirred column made the workers' strided walks through the slot buffers cost twice the
+#: serial pass). The chunk size depends on the task count alone; every task writes only its
+#: own slots, so no size changes a bit.
 TASK_CHUNK = 8
+CHUNKS_PER_WORKER = 4
+#: From this many tasks the contacts are gathered in parallel (:func:`gather_parallel`), in
+#: chunks of GATHER_CHUNK tasks; either way the same arrays.
+PARALLEL_GATHER_TASKS = 20000
+GATHER_CHUNK = 2048
 #: Parallel workers (each takes every WORKERS-th chunk): enough to even out 2..16 threads.
 WORKERS = 32
 
@@ -84,13 +95,31 @@ def scratch_for(max_hits):
 
 
 class Slots(NamedTuple):
-    """Output buffers: task t writes ``count[t]`` contacts from slot ``t * MAX_PER_TASK``:
-    ``point`` (S, 3) world, ``normal`` (S, 3) unit from b to a, ``gap`` (S,), ``feat`` (S,)."""
+    """Output buffers: task t writes ``count[t]`` contacts from slot ``first[t]`` (room for
+    :func:`slot_room` of them): ``point`` (S, 3) world, ``normal`` (S, 3) unit from b to a,
+    ``gap`` (S,), ``feat`` (S,)."""
     count: np.ndarray
     point: np.ndarray
     normal: np.ndarray
     gap: np.ndarray
     feat: np.ndarray
+    first: np.ndarray
+
+
+@njit(cache=True)
+def slot_room(ta, tb, kind):
+    """(T + 1,) each task's first slot (the last entry: the slots needed). A task with a
+    sphere in it tests one point (the centre line, or the sphere's centre against a tree) and
+    has at most one contact; any other at most MAX_PER_TASK. ``kind`` (N,) each body's shape
+    kind (0: sphere). Packed this way the slots of a sphere bed are dense: the narrow phase
+    writes, and the gather reads, consecutive rows rather than one row in MAX_PER_TASK."""
+    ntask = ta.shape[0]
+    first = np.empty(ntask + 1, np.int64)
+    first[0] = 0
+    for t in range(ntask):
+        one = kind[ta[t]] == 0 or (tb[t] >= 0 and kind[tb[t]] == 0)
+        first[t + 1] = first[t] + (1 if one else MAX_PER_TASK)
+    return first
 
 
 @njit(cache=True, inline="always")
@@ -373,6 +402,9 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots
                 dz = pos[a, 2] - (pos[b, 2] + tasks.shift[t, 2])
                 dist = math.sqrt(dx * dx + dy * dy + dz * dz)
                 gap = dist - shape_rad[sa] - shape_rad[sb]
+                # at most one hit, written straight into the task's slot (what the manifold
+                # reduction makes of a single hit)
+                slots.count[t] = 0
                 if gap < margin:
                     if dist > 0.0:
                         nx = dx / dist
@@ -381,18 +413,16 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots
                     else:
                         nx, ny, nz = 0.0, 1.0, 0.0
                     h = shape_rad[sa] + 0.5 * gap
-                    hits[0, 0] = pos[a, 0] - h * nx
-                    hits[0, 1] = pos[a, 1] - h * ny
-                    hits[0, 2] = pos[a, 2] - h * nz
-                    hits[0, 3] = nx
-                    hits[0, 4] = ny
-                    hits[0, 5] = nz
-                    hits[0, 6] = gap
-                    hits[0, 7] = 0.0
-                    nh = one_i
-                slots.count[t] = reduce_hits(hits, nh, lab, reps, tol2, touch,
-                                             t * MAX_PER_TASK, slots.point, slots.normal,
-                                             slots.gap, slots.feat)
+                    o = slots.first[t]
+                    slots.point[o, 0] = pos[a, 0] - h * nx
+                    slots.point[o, 1] = pos[a, 1] - h * ny
+                    slots.point[o, 2] = pos[a, 2] - h * nz
+                    slots.normal[o, 0] = nx
+                    slots.normal[o, 1] = ny
+                    slots.normal[o, 2] = nz
+                    slots.gap[o] = gap
+                    slots.feat[o] = 0
+                    slots.count[t] = 1
                 continue
             xa = pos[a]
             Ra = rot[a]
@@ -447,7 +477,7 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots
                     nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, b, geo, origin,
                                           tree, 1.0, zero_i, margin, delta, st, hits, nh, pose,
                                           lpos, lend)
-            slots.count[t] = reduce_hits(hits, nh, lab, reps, tol2, touch, t * MAX_PER_TASK,
+            slots.count[t] = reduce_hits(hits, nh, lab, reps, tol2, touch, slots.first[t],
                                          slots.point, slots.normal, slots.gap, slots.feat)
     cur.fill[worker] = lpos - worker * share if lpos <= lend else -1
 
@@ -455,7 +485,8 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots
 @njit(cache=True, parallel=True)
 def narrow_phase(tasks, pos, rot, shape_of, geo, tol2, touch, chunks, slots, delta, old, prev,
                  cur, scratch):
-    """Contacts of every task into its own ``MAX_PER_TASK`` slots; ``slots.count[t]`` = used.
+    """Contacts of every task into its own slots (from ``slots.first[t]``, at most
+    :func:`slot_room`'s room); ``slots.count[t]`` = used.
 
     ``tasks`` a :class:`Tasks`; ``pos`` (N, 3) and ``rot`` (N, 3, 3) the bodies' centres and
     home -> world rotations, ``shape_of`` (N,) their shape ids; ``geo`` the
@@ -467,15 +498,17 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, tol2, touch, chunks, slots, del
     ``scratch``: a :class:`Scratch` for at least ``geo.max_hits`` hits.
     ``chunks`` = 1 runs serially in the calling thread (small problems, where a parallel launch
     costs more than it saves), otherwise WORKERS workers run in parallel, each taking every
-    WORKERS-th chunk of TASK_CHUNK tasks. Either way every task writes only its own slots, and
+    WORKERS-th chunk of tasks (TASK_CHUNK, or about CHUNKS_PER_WORKER chunks per worker on a
+    large task list). Either way every task writes only its own slots, and
     its hits are those of a scan, so the result is identical."""
     nw = WORKERS if chunks > 1 else 1
     for k in range(nw, WORKERS):
         cur.fill[k] = 0
+    size = max(TASK_CHUNK, tasks.a.shape[0] // (WORKERS * CHUNKS_PER_WORKER))
     for k in prange(nw):
         # k is unsigned in the parallel loop's body and signed where Numba types the call:
         # one int64 signature instead of two compilations of the whole worker
-        _worker(np.int64(k), np.int64(nw), np.int64(TASK_CHUNK), tasks, pos, rot, shape_of,
+        _worker(np.int64(k), np.int64(nw), np.int64(size), tasks, pos, rot, shape_of,
                 geo, tol2, touch, slots, delta, old, prev, cur, scratch)
 
 
@@ -484,20 +517,45 @@ def gather(tasks, slots):
     """The contacts of :func:`narrow_phase` packed in task order: (a, b, shift (n, 3), point
     (n, 3), normal (n, 3), gap, feat), one row per used slot."""
     ntask = tasks.a.shape[0]
-    total = 0
+    first = np.empty(ntask + 1, np.int64)
+    first[0] = 0
     for t in range(ntask):
-        total += slots.count[t]
-    a = np.empty(total, np.int64)
-    b = np.empty(total, np.int64)
-    shift = np.empty((total, 3))
-    point = np.empty((total, 3))
-    normal = np.empty((total, 3))
-    gap = np.empty(total)
-    feat = np.empty(total, np.int64)
-    k = 0
+        first[t + 1] = first[t] + slots.count[t]
+    out = _gather_arrays(first[ntask])
+    _gather_tasks(0, ntask, tasks, slots, first, *out)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def gather_parallel(tasks, slots):
+    """:func:`gather` with the tasks dealt in chunks to parallel workers: each row is written
+    by the one task it comes from, so the arrays are the same, bit for bit."""
+    ntask = tasks.a.shape[0]
+    first = np.empty(ntask + 1, np.int64)
+    first[0] = 0
     for t in range(ntask):
+        first[t + 1] = first[t] + slots.count[t]
+    a, b, shift, point, normal, gap, feat = _gather_arrays(first[ntask])
+    for ch in prange((ntask + GATHER_CHUNK - 1) // GATHER_CHUNK):
+        _gather_tasks(ch * GATHER_CHUNK, min(ntask, (ch + 1) * GATHER_CHUNK), tasks, slots,
+                      first, a, b, shift, point, normal, gap, feat)
+    return a, b, shift, point, normal, gap, feat
+
+
+@njit(cache=True)
+def _gather_arrays(total):
+    return (np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3)),
+            np.empty((total, 3)), np.empty((total, 3)), np.empty(total),
+            np.empty(total, np.int64))
+
+
+@njit(cache=True)
+def _gather_tasks(t0, t1, tasks, slots, first, a, b, shift, point, normal, gap, feat):
+    """Tasks t0..t1-1: their used slots into rows from ``first[t]``."""
+    for t in range(t0, t1):
+        k = first[t]
         for u in range(slots.count[t]):
-            o = t * MAX_PER_TASK + u
+            o = slots.first[t] + u
             a[k] = tasks.a[t]
             b[k] = tasks.b[t]
             for e in range(3):
@@ -507,4 +565,3 @@ def gather(tasks, slots):
             gap[k] = slots.gap[o]
             feat[k] = slots.feat[o]
             k += 1
-    return a, b, shift, point, normal, gap, feat

@@ -32,7 +32,7 @@ from peclet.core.validation import PecletArgumentError, check_array, check_float
 from peclet.dem import broadphase, narrowphase, persistence, solver
 from peclet.dem.bodies import Bodies
 from peclet.dem.contacts import (Detector, WarmStart, body_reach, lever_arms, listing,
-                                 overlap_pairs)
+                                 overlap_pairs, reorder)
 from peclet.dem.domain import Domain
 from peclet.dem.materials import (MAX_MATERIAL_ID, SIMULATION_DEFAULT, MaterialTable,
                                   material, per_contact)
@@ -40,7 +40,7 @@ from peclet.dem.wallmotion import WallMotion
 from peclet.dem.hertz import HertzState
 from peclet.dem.sleep import Sleep
 from peclet.dem.guards import StepError, check_state, speed_bound  # noqa: F401 (API)
-from peclet.dem.rigid import advance_all
+from peclet.dem.rigid import advance_all, advance_rotations
 from peclet.dem.scales import Scales
 from peclet.dem.shapes import analytic_wall, build_geometry, scene_shape, sphere_shape
 
@@ -51,6 +51,11 @@ DEFAULT_MARGIN_FRACTION = 0.05
 
 #: Gaps below this fraction of the smallest bounding radius count as touching (see _slop).
 SLOP_FRACTION = 5e-4
+
+#: From this many bodies the step turns them, and finds their world inverse inertias, in
+#: parallel (rigid.advance_rotations, solver.world_inv_inertias_parallel: the same bits as the
+#: serial loops).
+PARALLEL_ROTATION_BODIES = 4000
 
 #: Bounds on work a call can ask for: Gauss-Seidel sweeps per step, the capacity hints.
 MAX_SOLVER_ITERATIONS = 10_000
@@ -624,6 +629,11 @@ class Simulation:
                          frozen,
                          None if frozen is None else ~wall_moving)
         t1 = time.perf_counter()
+        # a large contact set is solved colour by colour, each colour in parallel (solver.py),
+        # on the contacts rearranged into that order; below the threshold, in contact order
+        colors = solver.colors_for(c.a, c.b, len(x))
+        if colors is not None:
+            c = reorder(c, colors.order)
         keys = WarmStart.keys_of(c, len(self._walls))
         t1v, t2v = solver.tangent_basis(c.normal)
         if materials:
@@ -639,15 +649,20 @@ class Simulation:
             vw[isw] = self._wallmo.surface_velocity(-1 - c.b[isw], c.point[isw])
         con = solver.Constraints(c.a, c.b, c.normal, t1v, t2v, ra, rb, c.gap, e_c, beta_c, mu_c,
                                  vw)
-        invI = solver.world_inv_inertias(q, inv_inertia)
+        invI = (solver.world_inv_inertias_parallel if len(q) >= PARALLEL_ROTATION_BODIES
+                else solver.world_inv_inertias)(q, inv_inertia)
         rest = 2.0 * dt * float(np.sqrt((self._gravity ** 2).sum()))
-        vn = solver.solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest, self._slop(),
-                                     self._vel_iters)
+        vn = solver.solve(con, lam, v, w, inv_mass, invI, dt, rest, self._slop(),
+                          self._vel_iters, colors)
         self._guard(x, q, v, w, limits)
         x += v * dt
-        advance_all(q, w, inv_inertia, dt)
-        solver.project_positions(con, c.gap + dt * vn, inv_mass, invI, self._slop(),
-                                 self._pos_iters, x, q)
+        # rigid.advance_rotations is advance_all's parallel path (the same per-body kernel,
+        # the same bits); it pays from a few thousand bodies on (a 22,121-grain column: 2.4
+        # against 3.7 ms serially, at one thread already)
+        (advance_rotations if len(q) >= PARALLEL_ROTATION_BODIES else advance_all)(
+            q, w, inv_inertia, dt)
+        solver.project(con, c.gap + dt * vn, inv_mass, invI, self._slop(), self._pos_iters, x,
+                       q, colors)
         self._domain.wrap(x)
         if frozen is not None:
             q[frozen] = q_frozen                # a sleeper's pose keeps its bits
@@ -708,6 +723,8 @@ class Simulation:
             con = solver.Constraints(c.a, c.b, c.normal, t1v, t2v, ra, rb, c.gap, zero, zero,
                                      zero, np.zeros((len(c.a), 3)))
             invI = solver.world_inv_inertias(q, inv_inertia)
+            # serial in contact order at any size: a sweep along the body order carries a
+            # correction through a whole stack, a coloured one a contact or two per colour
             solver.project_positions(con, c.gap, b.inv_mass, invI, self._slop(),
                                      max(self._pos_iters, 1), x, q)
             self._domain.wrap(x)
