@@ -318,6 +318,25 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @njit(cache=True)
+def _into_plane(hx, hy, hz, nx, ny, nz):
+    """A contact's history vector (hx, hy, hz) turned into the plane normal to the unit n,
+    its length kept (a zero projection stays zero): the contact frame turned since the
+    history was stored. Serves the Mindlin and the rolling histories alike."""
+    old = math.sqrt(hx * hx + hy * hy + hz * hz)
+    hn = hx * nx + hy * ny + hz * nz
+    hx -= hn * nx
+    hy -= hn * ny
+    hz -= hn * nz
+    new = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if new > 0.0:
+        s = old / new
+        hx *= s
+        hy *= s
+        hz *= s
+    return hx, hy, hz
+
+
+@njit(cache=True)
 def _one_contact(i, a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, rstar, mstar,
                  gamma, mu, xi, dt, force, fn_out):
     # contact i of contact_forces; writes only row i
@@ -357,18 +376,7 @@ def _one_contact(i, a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, 
     if fn < 0.0:
         fn = 0.0
     # history into the current tangent plane, length kept (the contact frame turned)
-    hx, hy, hz = xi[i, 0], xi[i, 1], xi[i, 2]
-    old = math.sqrt(hx * hx + hy * hy + hz * hz)
-    hn = hx * nx + hy * ny + hz * nz
-    hx -= hn * nx
-    hy -= hn * ny
-    hz -= hn * nz
-    new = math.sqrt(hx * hx + hy * hy + hz * hz)
-    if new > 0.0:
-        s = old / new
-        hx *= s
-        hy *= s
-        hz *= s
+    hx, hy, hz = _into_plane(xi[i, 0], xi[i, 1], xi[i, 2], nx, ny, nz)
     hx += tx * dt
     hy += ty * dt
     hz += tz * dt
@@ -514,18 +522,7 @@ def _one_rolling(i, a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, 
     r = rroll[i]
     kr = 2.25 * kn * m * m * r * r
     # history into the current tangent plane, length kept (as the Mindlin history)
-    hx, hy, hz = mr[i, 0], mr[i, 1], mr[i, 2]
-    old = math.sqrt(hx * hx + hy * hy + hz * hz)
-    hn = hx * nx + hy * ny + hz * nz
-    hx -= hn * nx
-    hy -= hn * ny
-    hz -= hn * nz
-    new = math.sqrt(hx * hx + hy * hy + hz * hz)
-    if new > 0.0:
-        s = old / new
-        hx *= s
-        hy *= s
-        hz *= s
+    hx, hy, hz = _into_plane(mr[i, 0], mr[i, 1], mr[i, 2], nx, ny, nz)
     hx -= kr * wx * dt
     hy -= kr * wy * dt
     hz -= kr * wz * dt
