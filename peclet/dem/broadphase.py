@@ -18,6 +18,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from peclet.dem.sorting import counting_sort
+
 #: From this many bodies the rows are found in parallel (below, a parallel launch costs more
 #: than the rows); either way the same arrays.
 PARALLEL_BODIES = 4000
@@ -36,7 +38,6 @@ def build_cells(pos, lo, cell, dims):
     n = pos.shape[0]
     coords = np.empty((n, 3), np.int64)
     ncell = dims[0] * dims[1] * dims[2]
-    counts = np.zeros(ncell + 1, np.int64)
     cid = np.empty(n, np.int64)
     for i in range(n):
         for a in range(3):
@@ -46,16 +47,8 @@ def build_cells(pos, lo, cell, dims):
             if c >= dims[a]:
                 c = dims[a] - 1
             coords[i, a] = c
-        k = (coords[i, 2] * dims[1] + coords[i, 1]) * dims[0] + coords[i, 0]
-        cid[i] = k
-        counts[k + 1] += 1
-    for k in range(ncell):
-        counts[k + 1] += counts[k]
-    fill = counts[:-1].copy()
-    items = np.empty(n, np.int64)
-    for i in range(n):
-        items[fill[cid[i]]] = i
-        fill[cid[i]] += 1
+        cid[i] = (coords[i, 2] * dims[1] + coords[i, 1]) * dims[0] + coords[i, 0]
+    counts, items = counting_sort(cid, ncell)
     return counts, items, coords
 
 

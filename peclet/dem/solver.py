@@ -46,6 +46,7 @@ from numba import njit, prange
 from peclet.core.geom.transforms import (multiply_xyzw, normalize_xyzw, quat_multiply,
                                          quat_normalize)
 from peclet.dem.rigid import world_inv_inertia
+from peclet.dem.sorting import counting_sort
 
 #: From this many contacts a step's velocity solve and position projection sweep the contacts
 #: colour by colour, each colour in parallel (:func:`solve_velocities_colored`); below it they
@@ -578,16 +579,7 @@ def color_contacts(ca, cb, n_bodies):
         if b >= 0:
             used[b, k] |= f
         ncol = max(ncol, c + 1)
-    start = np.zeros(ncol + 1, np.int64)
-    for i in range(n):
-        start[color[i] + 1] += 1
-    for k in range(ncol):
-        start[k + 1] += start[k]
-    fill = start[:-1].copy()
-    order = np.empty(n, np.int64)
-    for i in range(n):
-        order[fill[color[i]]] = i
-        fill[color[i]] += 1
+    start, order = counting_sort(color, ncol)
     body_fill = body_start[:-1].copy()
     body_items = np.empty(body_start[n_bodies], np.int64)
     for u in range(n):
