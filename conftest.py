@@ -1,23 +1,123 @@
-"""Repository-wide pytest configuration (the peclet_verify plugin loads via its entry point)."""
+"""Repository-wide pytest configuration (the peclet_verify plugin loads via its entry point).
+
+Two tiers. The README's test command (``python -m pytest -n auto``) runs the fast tier: every
+test not marked ``heavy``. The heavy tier (``python -m pytest --tier heavy -n auto``) holds the
+tests that take seconds each (long beds, planted-engine certifications, full grid studies,
+validation at reduced size); each subject keeps a cheaper test in the fast tier. ``.ci/run``
+runs both, the nightly runs the certificates. Naming files or test ids on the command line runs
+every tier of what was named unless ``--tier`` says otherwise.
+"""
+import os
 import subprocess
 import sys
 
 import pytest
 
+# Numba's OpenMP layer lets idle threads spin by default: with two test workers, each with a
+# two-thread pool, on two cores, a spinning pool holds a core the other worker needs and a
+# parallel region waits a scheduler slice (measured: 13 s of DEM tests took 32 s under -n 2).
+# Passive waiting changes which thread sleeps, never what any kernel computes (the bits are
+# the same). Set before any OpenMP runtime starts; the xdist workers and the tests' child
+# processes inherit it. A value the user set wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 pytest_plugins = ["pytester"]
+
+TIERS = ("fast", "heavy", "all")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--tier", choices=TIERS, default=None,
+                     help="which tests run: fast (no 'heavy' mark; the default without test "
+                     "paths), heavy (only those), all (the default when paths are named)")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "heavy: the heavy tier, run by --tier heavy or all "
+                            "(and by .ci/run), not by the README's test command")
+
+
+def _tier(config):
+    tier = config.getoption("--tier")
+    if tier is None:
+        tier = "fast" if config.args_source == pytest.Config.ArgsSource.TESTPATHS else "all"
+    return tier
+
+
+def pytest_collection_modifyitems(config, items):
+    tier = _tier(config)
+    if tier == "all":
+        return
+    keep, drop = [], []
+    for item in items:
+        heavy = item.get_closest_marker("heavy") is not None
+        (keep if heavy == (tier == "heavy") else drop).append(item)
+    if drop:
+        config.hook.pytest_deselected(items=drop)
+        items[:] = keep
+
+
+def pytest_sessionstart(session):
+    """A whole-suite run (no test paths named) on a cold Numba cache compiles the page's
+    kernels first, the DEM step in two child processes while this one measures the Pall ring
+    (what ``peclet warm`` does), before any xdist worker starts. Otherwise both workers compile
+    the same kernels at once, each a core's worth of minutes (cold test command: 281 s with
+    two workers compiling side by side). Nothing is compiled that a warm cache holds."""
+    config = session.config
+    if hasattr(config, "workerinput") or config.args_source != pytest.Config.ArgsSource.TESTPATHS:
+        return
+    import time
+
+    from peclet.core.geom.quadrature.refine import integrate_cells
+    from peclet.core.jitcache import is_cached
+    from peclet.dem import warm
+
+    t = time.perf_counter()
+    children = warm.start_background()
+    quadrature = is_cached(integrate_cells) is False
+    if quadrature:
+        from peclet.packing.api import _resolve_element, element_model
+
+        element_model(_resolve_element("pall_ring"))
+    ok = warm.finish(children)
+    if children is not None or quadrature:
+        tr = config.pluginmanager.get_plugin("terminalreporter")
+        if tr is not None:
+            tr.write_line(f"cold Numba cache: the page's kernels compiled first in "
+                          f"{time.perf_counter() - t:.0f} s (DEM step children "
+                          f"{'ok' if ok else 'failed: the tests compile it'})")
+
+
+def pytest_report_header(config):
+    return f"peclet test tier: {_tier(config)} (conftest.py; --tier fast|heavy|all)"
 
 
 @pytest.fixture(scope="session")
 def peclet_geom_python(tmp_path_factory):
     """The interpreter of a fresh venv holding the upstream ``peclet-geom`` wheel (it ships a
     ``peclet`` namespace that must not meet ours); built once per session, skipped with the
-    installer's reason when the wheel cannot be installed from the package index."""
-    venv = tmp_path_factory.mktemp("peclet-geom-venv")
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    installer's reason when the wheel cannot be installed from the package index. Under
+    pytest-xdist the workers share one venv (built by the first, under a file lock, in the
+    run's common temporary directory)."""
+    import fcntl
+
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent                   # the directory every worker's basetemp lies in
+    venv = base / "peclet-geom-venv"
     py = str(venv / "bin" / "python")
-    proc = subprocess.run([py, "-m", "pip", "install", "-q", "peclet-geom"],
-                          capture_output=True, text=True, timeout=600)
-    if proc.returncode != 0:
-        pytest.skip(f"peclet-geom could not be installed from the package index: "
-                    f"{proc.stderr.strip()[-300:]}")
+    with open(base / "peclet-geom-venv.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)     # released when the file closes
+        failed = base / "peclet-geom-venv.failed"
+        if not (venv / "ready").exists() and not failed.exists():
+            subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+            proc = subprocess.run([py, "-m", "pip", "install", "-q", "peclet-geom"],
+                                  capture_output=True, text=True, timeout=600)
+            if proc.returncode == 0:
+                (venv / "ready").write_text("")
+            else:
+                failed.write_text(proc.stderr.strip()[-300:])
+        if failed.exists():
+            pytest.skip(f"peclet-geom could not be installed from the package index: "
+                        f"{failed.read_text()}")
     return py

@@ -7,7 +7,8 @@ the clone into it with the README's command, and with an empty ``NUMBA_CACHE_DIR
 
 1. ``peclet pall-ring --out R1``   (cold: every kernel compiles),
 2. ``peclet pall-ring --out R2``   (warm: the same, from the cache),
-3. optionally (``--tests``) the test command, cold (its own empty cache).
+3. optionally (``--tests``) the README's test command (the fast tier), cold (its own empty
+   cache).
 
 Targets (issue 27, 2 cores): cold main job <= 60 s, warm no slower than before, cold tests
 <= 4 min. Writes benchmarks/results/first_run.json and prints a table. Run on a quiet machine:
@@ -58,8 +59,8 @@ def main(argv=None):
         rows["pall_ring_warm"], _ = timed("peclet pall-ring --out R2 --quiet", clone, env)
         if a.tests:
             env_t = dict(env, NUMBA_CACHE_DIR=os.path.join(tmp, "numba_tests"))
-            rows["tests_cold"], _ = timed("pip install -q -e '.[test]' && python -m pytest -q "
-                                          "-x -p no:cacheprovider", clone, env_t)
+            rows["tests_cold"], _ = timed("pip install -q -e '.[test]' && python -m pytest -n auto "
+                                          "-q -x -p no:cacheprovider", clone, env_t)
     _report.write("first_run", dict(seconds=rows, targets=dict(pall_ring_cold=60.0,
                                                                 tests_cold=240.0)))
     print(_report.table([(k, f"{v:.0f}") for k, v in rows.items()], ["step", "seconds"]))

@@ -222,20 +222,37 @@ _THREAD_SCRIPT = textwrap.dedent("""
 """)
 
 
-def _run_threads(threads, parallel_min, script=None, timeout=600):
-    """The output words of ``script`` (default the pile above) run in a child with
-    NUMBA_NUM_THREADS = ``threads`` and the Hertz kernels' parallel threshold ``parallel_min``."""
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
-    out = subprocess.run([sys.executable, "-c", script or _THREAD_SCRIPT, str(parallel_min)],
-                         env=env, capture_output=True, text=True, timeout=timeout)
-    assert out.returncode == 0, out.stderr
-    return out.stdout.split()
+#: the three runs a same-bits test compares: the parallel kernels forced on every call at one
+#: and at two threads, and the serial kernels at two threads
+VARIANTS = ((1, 1), (2, 1), (2, 10 ** 9))
+
+
+def run_thread_variants(script=None, variants=VARIANTS, timeout=600):
+    """The output words of ``script`` (default the pile above) for each (threads,
+    parallel_min) of ``variants``, the children run at the same time (they are independent;
+    one after the other took most of these tests' time)."""
+    procs = []
+    for threads, parallel_min in variants:
+        env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+        procs.append(subprocess.Popen(
+            [sys.executable, "-c", script or _THREAD_SCRIPT, str(parallel_min)], env=env,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    outs = []
+    try:
+        for p in procs:
+            out, err = p.communicate(timeout=timeout)
+            assert p.returncode == 0, err
+            outs.append(out.split())
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    return outs
 
 
 def test_same_bits_at_1_and_2_threads_and_serial():
-    par1 = _run_threads(1, 1)          # the parallel kernels forced on every call
-    par2 = _run_threads(2, 1)
-    ser2 = _run_threads(2, 10 ** 9)    # the serial kernels
+    par1, par2, ser2 = run_thread_variants()
     assert int(par1[0]) > 20           # a pile with many contacts, not a trivial run
     assert par1 == par2 == ser2
 

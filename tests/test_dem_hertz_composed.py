@@ -23,7 +23,7 @@ from validation import chung_ooi
 # a few bodies: one thread for every test here, as in the sphere tests (the thread test below
 # runs its own subprocesses)
 from test_dem_hertz import _one_thread  # noqa: F401 (an autouse fixture)
-from test_dem_hertz import _run_threads as run_hertz_threads
+from test_dem_hertz import run_thread_variants
 
 G = 9.81
 R = 0.01
@@ -367,14 +367,9 @@ _THREAD_SCRIPT = textwrap.dedent("""
 """)
 
 
-def _run_threads(threads, parallel_min):
-    return run_hertz_threads(threads, parallel_min, _THREAD_SCRIPT, timeout=1200)
-
-
+@pytest.mark.heavy
 def test_composed_same_bits_at_1_and_2_threads_and_serial():
-    par1 = _run_threads(1, 1)          # the parallel kernels forced on every call
-    par2 = _run_threads(2, 1)
-    ser2 = _run_threads(2, 10 ** 9)    # the serial kernels
+    par1, par2, ser2 = run_thread_variants(_THREAD_SCRIPT, timeout=1200)
     # two balls bodies on the floor and on each other, CSG ball on an analytic sphere and
     # under one (a sphere as body a), an analytic sphere on the floor
     assert {"0:-1", "0:1", "4:-1", "4:5", "6:7", "6:-1"} <= set(par1[0].split(","))
@@ -402,6 +397,7 @@ def test_box_landing_on_its_face_now_runs_on_the_distributed_law(parts):
     assert low < R                                           # it did reach the floor
 
 
+@pytest.mark.heavy
 def test_capsule_lying_on_its_side_now_runs_and_carries_its_weight(parts):
     # a line contact along the cylinder: no Hertz point contact, the distributed law instead
     sp = parts["capsule"]

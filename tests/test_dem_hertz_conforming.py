@@ -26,7 +26,7 @@ from peclet.packing import elements
 
 # one thread here (a few bodies); the thread test runs its own subprocesses
 from test_dem_hertz import _one_thread  # noqa: F401 (an autouse fixture)
-from test_dem_hertz import _run_threads as run_hertz_threads
+from test_dem_hertz import run_thread_variants
 from test_dem_hertz_composed import I4, NU, RHO, _floor, _sim
 
 G = 9.81
@@ -96,6 +96,7 @@ def test_box_on_its_face_rests_at_the_flat_punch_overlap(box):
     assert np.abs(sim._bodies.omega[0]).max() < 1e-6
 
 
+@pytest.mark.heavy
 def test_resting_overlap_does_not_depend_on_the_probe_count():
     # the probes only pick the normal; the region is sampled on its own grid
     d = [R - _rest_box(_box(n), 1000).get_positions()[0, 1] for n in (200, 800)]
@@ -103,6 +104,7 @@ def test_resting_overlap_does_not_depend_on_the_probe_count():
 
 
 # -------------------------------------------------------------------------- line contact
+@pytest.mark.heavy
 def test_ring_on_its_side_rests_at_the_line_contact_overlap(ring):
     sim = _rest_ring_on_side(ring)
     c = sim.hertz_contacts()
@@ -115,6 +117,7 @@ def test_ring_on_its_side_rests_at_the_line_contact_overlap(ring):
     assert delta / (ring.mass * G / (math.pi / 4 * ES * 2 * R)) > 3.0      # not the simple law
 
 
+@pytest.mark.heavy
 def test_line_contact_converges_with_the_sampling_grid(ring, monkeypatch):
     d = []
     for n in (12, 24, 48):
@@ -207,10 +210,9 @@ _BED_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.heavy
 def test_bed_of_raschig_rings_runs_finite_and_same_bits_at_1_and_2_threads():
-    par1 = run_hertz_threads(1, 1, _BED_SCRIPT, timeout=1200)
-    par2 = run_hertz_threads(2, 1, _BED_SCRIPT, timeout=1200)
-    ser2 = run_hertz_threads(2, 10 ** 9, _BED_SCRIPT, timeout=1200)
+    par1, par2, ser2 = run_thread_variants(_BED_SCRIPT, timeout=1200)
     assert par1 == par2 == ser2
     deepest, final, pairs, ring_pairs = (float(par1[0]), float(par1[1]), int(par1[2]),
                                          int(par1[3]))

@@ -20,7 +20,7 @@ from peclet.dem import Simulation, hertz
 
 # one thread for these one- and two-body runs (the thread test runs its own subprocesses)
 from test_dem_hertz import _one_thread  # noqa: F401 (an autouse fixture)
-from test_dem_hertz import _THREAD_SCRIPT, G, _floor, _run_threads, _sphere_sim
+from test_dem_hertz import _THREAD_SCRIPT, G, _floor, _sphere_sim, run_thread_variants
 
 R, E, NU, RHO, MU = 0.01, 1e7, 0.3, 2500.0, 0.5
 M = RHO * 4.0 / 3.0 * math.pi * R ** 3
@@ -297,9 +297,7 @@ _ROLL_SCRIPT = _THREAD_SCRIPT.replace(
 
 def test_same_bits_at_1_and_2_threads_and_serial():
     assert _ROLL_SCRIPT != _THREAD_SCRIPT
-    par1 = _run_threads(1, 1, _ROLL_SCRIPT)       # the parallel kernels forced on every call
-    par2 = _run_threads(2, 1, _ROLL_SCRIPT)
-    ser2 = _run_threads(2, 10 ** 9, _ROLL_SCRIPT)  # the serial kernels
+    par1, par2, ser2 = run_thread_variants(_ROLL_SCRIPT)
     # printed: the touching contacts with a rolling torque, the contacts, the hash
     assert int(par1[1]) > 20 and int(par1[0]) > 10  # many contacts, many rolling torques
     assert par1 == par2 == ser2

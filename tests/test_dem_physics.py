@@ -143,6 +143,7 @@ def test_six_sphere_column_comes_to_rest_without_sinking():
     np.testing.assert_allclose(sim.get_positions()[:, [0, 2]], 0.0, atol=1e-9)
 
 
+@pytest.mark.heavy
 def test_lattice_bed_5x5x40_in_a_box_comes_to_rest_without_sinking():
     r, nx, ny = 0.5, 5, 40
     gap = 1e-3                                      # side clearance per sphere

@@ -76,6 +76,7 @@ def shrunk_tree(cert):
 
 
 # ---------------------------------------------------------------------------- mesh engine
+@pytest.mark.heavy
 def test_mesh_engine_certification(tmp_path):
     done, report = certify(MESH, tmp_path, {"MESH_ENGINE_N": str(COARSE)})
     assert done.returncode == 0, done.stdout[-3000:]
@@ -182,6 +183,7 @@ def test_mesh_engine_answers_an_empty_solid_as_outside_everywhere():
 
 
 # ---------------------------------------------------------------------------- upstream wheel
+@pytest.mark.heavy
 @pytest.mark.slow
 def test_upstream_geom_certification(peclet_geom_python, tmp_path):
     done, report = certify(UPSTREAM, tmp_path, {"PECLET_GEOM_PYTHON": peclet_geom_python})

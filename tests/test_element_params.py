@@ -125,6 +125,7 @@ def test_cli_pack_refuses_bad_parameters_in_one_line(tmp_path, capsys, value, wo
 
 
 # ---------------------------------------------------------------- a small run
+@pytest.mark.heavy
 def test_cli_pack_with_a_thin_ring_writes_its_parameters(tmp_path, capsys):
     out = tmp_path / "bed"
     code = main(["pack", "--element", "pall_ring:thickness=0.024", "--count", "9",
@@ -226,6 +227,7 @@ def test_cli_ensemble_refuses_bad_element_parameters(tmp_path, capsys, argv, fla
     assert "\n" not in err and word in err and not out.exists()
 
 
+@pytest.mark.heavy
 def test_a_tiny_thickness_sweep_realized(tmp_path):
     """Two thicknesses x one seed, 13 rings rained into the page's 3.5 D box, realized
     serially into the ledger; run() then reads them back (no cluster) and the summary groups

@@ -271,7 +271,7 @@ def test_thin_wall_warning_names_the_wall(tiny_pack):
     assert t == pytest.approx(1.0) and "sphere" in name
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_page_pipeline_with_flow_adds_k_and_ergun(tmp_path):
     # the page at reduced size (tests/test_packing_pipeline.py's stand-in particle, 6 rings,
     # 0.14 of the steps) with the flow at D/6: k and dP/L / Ergun in results.json and the table

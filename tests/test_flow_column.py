@@ -50,6 +50,7 @@ def test_the_column_wall_is_the_containers_exact_distance():
     assert (0.5 * (grid.dims[0] - 1)) * grid.h > 1.5
 
 
+@pytest.mark.heavy
 def test_empty_pipe_made_by_the_column_wall_is_poiseuille_at_second_order():
     # k = R^2 / 8 relative to the pipe's cross-section; the nodal velocities are exact with
     # the corrected linear rule, the flux over uncut links sums them over the lattice's disk,
@@ -104,6 +105,7 @@ def test_the_container_comes_from_the_results_beside_the_pack(column_bed):
     assert pack_container(pk, "column:4")[0].radius == 2.0
 
 
+@pytest.mark.heavy
 def test_a_column_section_of_a_rained_bed(column_bed):
     pf = permeability(column_bed, resolution=6)
     s, f = pf.summary(), pf.flow
@@ -131,6 +133,7 @@ def test_a_column_section_of_a_rained_bed(column_bed):
     assert pf.dpdl_lattice == pytest.approx(s["force"] * (1.0 - s["seam_share"]), rel=1e-12)
 
 
+@pytest.mark.heavy
 def test_two_step_means_cancel_the_period_2_mode(column_bed):
     # a pack's section carries a period-2 mode: the wall force alternates from step to step
     # by far more than the two-step mean's error, which the criterion holds to 1e-4
@@ -140,6 +143,7 @@ def test_two_step_means_cancel_the_period_2_mode(column_bed):
     assert f.parity_swing > 100 * abs(f.balance - 1.0)
 
 
+@pytest.mark.heavy
 def test_cli_runs_a_grid_study_on_a_column_section(column_bed, tmp_path):
     # peclet flow --resolutions on a column section: each resolution a section with its wall,
     # k extrapolated (two resolutions: order 2 assumed; validation/flow.py runs three)

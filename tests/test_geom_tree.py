@@ -155,7 +155,8 @@ def _scene(n, certified_share, seed, box=None):
     return b, g
 
 
-@pytest.mark.parametrize("periodic", [(False, False, False), (True, False, True)])
+@pytest.mark.parametrize("periodic", [(False, False, False),
+                                      pytest.param((True, False, True), marks=pytest.mark.heavy)])
 def test_scene_query_equals_brute_force_bitwise(periodic):
     box = (np.zeros(3), np.full(3, 8.0))
     b, g = _scene(1000, 0.9, 3, box)

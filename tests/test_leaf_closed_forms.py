@@ -38,7 +38,8 @@ def _quadrature(kind, params, half):
     return b.body_properties(r, -h, h, n=32, tol=TOL)
 
 
-@pytest.mark.parametrize("kind", sorted(CASES))
+@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.heavy)
+                                  if k == "hollow_cylinder_shell" else k for k in sorted(CASES)])
 def test_closed_form_matches_quadrature(kind):
     params, half = CASES[kind]
     cf = closed_form_mass_properties(kind, params)

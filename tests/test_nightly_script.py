@@ -51,6 +51,7 @@ def nightly(repo, out, profile, extra, **more_env):
                           env=env, capture_output=True, text=True, timeout=600)
 
 
+@pytest.mark.heavy
 def test_night_writes_report_junit_baseline_and_a_planted_regression_fails(sandbox, tmp_path):
     out = tmp_path / "night"
     mesh = dict(PYTHONPATH=MESH + os.pathsep + os.environ.get("PYTHONPATH", ""),

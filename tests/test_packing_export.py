@@ -197,6 +197,7 @@ def test_default_resolution_per_element_files_are_watertight_with_the_volume(rin
         assert _deviation(el.builder, el.root, vh, m.faces) <= info["chord_error"] + 1e-5
 
 
+@pytest.mark.heavy
 def test_coarse_budget_and_chord_error_are_followed_and_stay_closed(ring_bed, tmp_path):
     el, pack, vol, (_, _, default) = ring_bed
     coarse = E.export_mesh(pack, "400tri", min_feature=el.min_feature)

@@ -51,6 +51,13 @@ def moments_per_volume(name):
 
 SMOOTH = ["sphere", "ellipsoid", "capsule", "torus"]
 CREASED = ["box", "hollow_cylinder", "cone"]
+
+
+def heavy_params(names, *heavy):
+    """``names`` as parameters, those in ``heavy`` in the heavy tier (conftest.py: --tier)."""
+    return [pytest.param(n, marks=pytest.mark.heavy) if n in heavy else n for n in names]
+
+
 _cache = {}
 
 
@@ -72,7 +79,7 @@ def measure(name, n=32, tol=1e-9):
     return _cache[key]
 
 
-@pytest.mark.parametrize("name", SMOOTH)
+@pytest.mark.parametrize("name", heavy_params(SMOOTH, "ellipsoid", "torus"))
 def test_smooth_leaves_offset_and_rotated(name):
     p, ev, ei, V, ec = measure(name)
     assert ev <= 1e-10
@@ -82,7 +89,7 @@ def test_smooth_leaves_offset_and_rotated(name):
     assert ei * np.abs(p.inertia).max() <= p.moment_error
 
 
-@pytest.mark.parametrize("name", CREASED)
+@pytest.mark.parametrize("name", heavy_params(CREASED, "hollow_cylinder", "cone"))
 def test_creased_leaves_offset_and_rotated(name):
     p, ev, ei, V, ec = measure(name)
     assert ev <= 1e-8
@@ -100,6 +107,7 @@ def test_rotated_box_principal_axes_within_1e_6_rad():
         assert np.arccos(min(1.0, cosang)) < 1e-6
 
 
+@pytest.mark.heavy
 def test_box_at_random_rotations_1e_8():
     """Eight random rotations and offsets of a box (its vertices sit anywhere in the cells):
     relative volume error <= 1e-8, and the estimate bounds it every time."""
@@ -132,6 +140,7 @@ def test_tol_is_relative_to_the_solid_not_the_box():
         assert err <= p.volume_error <= tol * p.volume
 
 
+@pytest.mark.heavy
 def test_thin_torus_grazing_the_lines_does_not_overflow():
     """The nightly certificate's counterexample: along u a family of height lines grazes this
     thin torus, the v-structure's hash flickers with round-off, and the breakpoints used to
@@ -209,6 +218,7 @@ def test_near_tangent_line_finds_its_run_past_the_halving_cap():
     assert checked >= 20 and not missed, (checked, missed)
 
 
+@pytest.mark.heavy
 def test_turned_and_tilted_tubes_within_tol():
     """The two tubes of the certificate's slowest examples (a grazing line family; a rim
     whose outline touches its wall's, which makes a flicker zone far wider than U_ZONE) are
@@ -221,7 +231,7 @@ def test_turned_and_tilted_tubes_within_tol():
         assert abs(p.volume - V) <= p.volume_error <= 1e-5 * p.volume
 
 
-@pytest.mark.parametrize("name", ["sphere", "torus"])
+@pytest.mark.parametrize("name", heavy_params(["sphere", "torus"], "torus"))
 def test_convergence_order_on_smooth_leaves(name):
     """Top-level cells halved (n = 24, 48, 96: 6, 12, 24 cells per axis; tol loose, so no
     adaptive refinement): order >= 4."""
@@ -284,6 +294,7 @@ def _pall_ring_exact():
     return v, yc, np.array([syy + szz - v * yc * yc, sxx + szz, sxx + syy - v * yc * yc])
 
 
+@pytest.mark.heavy
 def test_pall_ring_against_its_exact_mass_properties():
     """Step 3 done right, against the ring's exact volume, com and moments: the page's call
     (n = 32, default tol 1e-8, the page's box) within 1e-8; refinements tol 1e-9 -> 1e-10

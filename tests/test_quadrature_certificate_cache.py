@@ -35,6 +35,7 @@ def _box(recipe):
     return b, root, c - 1.02 * r, c + 1.02 * r
 
 
+@pytest.mark.heavy
 def test_shared_levels_are_bitwise_the_separate_ones(monkeypatch):
     from peclet.core.geom.quadrature import refine
     from peclet_verify.properties.mass import reference_measure
@@ -67,6 +68,7 @@ def test_shared_levels_are_bitwise_the_separate_ones(monkeypatch):
     assert refined, "no example of the fixed set refines below its top cells"
 
 
+@pytest.mark.heavy
 def test_fast_certificate_gives_the_same_verdicts():
     statuses = set()
     for recipe in FIXED:

@@ -42,6 +42,7 @@ def test_drop_bounce_on_a_csg_floor():
     _check(sanity.item_drop(es=(0.9,), surfaces=("csg",), phases=0))
 
 
+@pytest.mark.heavy
 def test_drop_bounce_at_every_impact_phase():
     _check(sanity.item_drop(es=(0.7,), surfaces=("plane",), phases=8))
 

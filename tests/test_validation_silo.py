@@ -30,6 +30,8 @@ import pytest
 
 from validation import silo
 
+pytestmark = pytest.mark.heavy      # the heavy tier (conftest.py: --tier)
+
 
 @pytest.fixture(scope="module")
 def runs():

@@ -4,6 +4,8 @@ import pytest
 
 from validation import spheres
 
+pytestmark = pytest.mark.heavy      # the heavy tier (conftest.py: --tier)
+
 N = 5
 
 

@@ -7,6 +7,8 @@ import pytest
 
 from validation import thickness as T
 
+pytestmark = pytest.mark.heavy      # the heavy tier (conftest.py: --tier)
+
 TINY = T.Study(thicknesses=(0.1, 0.12), seeds=(1, 2), count=9, box=3.0, drop=2.0,
                samples=20_000)
 

@@ -130,6 +130,7 @@ def test_bad_option_is_a_one_line_usage_error(tmp_path, option, value, shown):
         in done.stderr
 
 
+@pytest.mark.heavy
 def test_hook_backend_and_a_broken_hook(tmp_path):
     """A downstream conftest hook reaches the certificates; a hook that raises stops the
     session with one line naming the hook."""
@@ -162,6 +163,7 @@ PLANTED = {
 }
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("factory", sorted(PLANTED))
 def test_each_planted_dem_engine_fails_exactly_its_certificate(tmp_path, factory):
     done, verdicts = certify(tmp_path, [DEM_FILE, MASS_FILE], "--peclet-dem-backend",

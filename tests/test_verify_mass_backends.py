@@ -89,6 +89,7 @@ def test_check_and_load_name_what_is_missing():
         load_mass_backend("peclet_verify.planted:nondeterministic_dem_backend")
 
 
+@pytest.mark.heavy
 def test_planted_mass_engine_fails_exactly_the_mass_certificate(tmp_path):
     report = tmp_path / "r.json"
     done = subprocess.run([sys.executable, "-m", "pytest", MASS_FILE, "--peclet-certify",

@@ -128,6 +128,7 @@ OWN_HYPOTHESIS = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.heavy
 def test_certification_never_changes_a_projects_own_hypothesis_settings(tmp_path):
     (tmp_path / "test_own.py").write_text(OWN_HYPOTHESIS)
     proc = _pytest(tmp_path, "--peclet-certify", "--peclet-profile", "ci", "-p", "no:randomly")
@@ -250,6 +251,7 @@ HOOK_CONFTEST = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.heavy
 def test_downstream_engine_by_hook_is_certified_and_its_deviation_waived(tmp_path):
     """One line in a test module and a hook in conftest certify a downstream engine (the
     tree walk with torus signs flipped: it fails, test_verify_plugin shows the same engine
@@ -283,6 +285,7 @@ def test_xfails_naming_an_unknown_certificate_is_refused(tmp_path):
 
 
 # ---------------------------------------------------------------------- xdist
+@pytest.mark.heavy
 def test_xdist_report_holds_every_certificate(tmp_path):
     """`pytest --peclet-certify -n 2 properties --peclet-report r.json`: the controller's
     report has every certificate of this repository (the quadrature one in SHARDS shards),
@@ -327,6 +330,7 @@ SAVED = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.heavy
 def test_replay_reruns_the_saved_failure_from_a_read_only_database(tmp_path):
     """A randomised run (dev profile: database under .hypothesis/examples) saves its failing
     example; --peclet-replay of a read-only copy re-runs it (nothing generated, nothing

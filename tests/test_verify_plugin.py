@@ -5,6 +5,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 DOWNSTREAM = textwrap.dedent('''
     import pytest
     from peclet_verify import properties as P
@@ -70,6 +72,7 @@ LONG = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.heavy
 def test_long_certificate_reports_progress_past_capture(tmp_path):
     """A search of >= 100 examples prints a line at every tenth, through pytest's capture."""
     (tmp_path / "test_long.py").write_text(LONG)
@@ -139,6 +142,7 @@ def _certify_files(tmp_path, tag, files):
     return {c["name"]: c for c in json.loads(rep.read_text())["certificates"]}
 
 
+@pytest.mark.heavy
 def test_ci_certificate_is_run_order_independent(tmp_path):
     """The ci profile draws the same examples for a certificate whether its file runs alone,
     before or after another certificate file (which imports modules while it runs)."""
