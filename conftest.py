@@ -35,6 +35,13 @@ def pytest_addoption(parser):
 def pytest_configure(config):
     config.addinivalue_line("markers", "heavy: the heavy tier, run by --tier heavy or all "
                             "(and by .ci/run), not by the README's test command")
+    # `-n` alone schedules in fixed batches; worksteal lets an idle worker take tests queued
+    # for a busy one, so a run does not end on one worker. Not in addopts: a --dist there
+    # would also switch pytest-benchmark off in benchmarks/tracked (it sees xdist as active).
+    if (getattr(config.option, "numprocesses", None) and config.option.dist == "load"
+            and not any(a.startswith("--dist") or a == "-d"
+                        for a in config.invocation_params.args)):
+        config.option.dist = "worksteal"
 
 
 def _tier(config):

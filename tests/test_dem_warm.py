@@ -6,11 +6,11 @@ import pytest
 from numba.core.registry import CPUDispatcher
 
 from peclet.dem import warm
-from peclet.dem import broadphase, contacts, guards, narrowphase, rigid, solver
+from peclet.dem import broadphase, contacts, guards, hertz, narrowphase, rigid, solver
 
 
 def _dispatchers():
-    mods = (broadphase, contacts, guards, narrowphase, rigid, solver)
+    mods = (broadphase, contacts, guards, hertz, narrowphase, rigid, solver)
     return {f"{m.__name__}.{k}": v for m in mods for k, v in vars(m).items()
             if isinstance(v, CPUDispatcher)}
 
@@ -25,6 +25,33 @@ def test_the_tail_compile_adds_no_signature_a_real_step_does_not_have():
     assert not new, f"the stand-in detection compiled signatures a real step does not use: {new}"
 
 
+def test_the_hertz_compile_adds_no_signature_a_real_hertz_step_does_not_have():
+    # the same two pairs touching under the real detection: box 1 resting on box 0, the
+    # sphere on the floor
+    sim = warm._tiny_simulation()
+    sim.set_positions(np.array([[0.0, 0.2, 0.0], [0.0, 0.599, 0.0], [0.9, 0.199, 0.3],
+                                [-0.9, 0.6, 0.4]]))
+    sim.set_hertz_material(0, 1e7, 0.3)
+    sim.set_rolling_friction(0.05)
+    sim.step_hertz(3, 1e-5)
+    real = sim.hertz_contacts()
+    pairs = set(zip(real["body_a"].tolist(), real["body_b"].tolist()))
+    assert (2, -1) in pairs and {(0, 1), (1, 0)} & pairs
+    before = {k: set(d.signatures) for k, d in _dispatchers().items()}
+    warm.compile_step_kernels("hertz")
+    after = {k: set(d.signatures) for k, d in _dispatchers().items()}
+    new = {k: after[k] - before.get(k, set()) for k in after if after[k] - before.get(k, set())}
+    assert not new, f"the stand-in detection compiled Hertz signatures a real step does not use: {new}"
+
+
+def test_the_colored_compile_solves_colour_by_colour_and_restores_the_threshold():
+    threshold = solver.COLORED_MIN_CONTACTS
+    sim = warm.compile_step_kernels("colored")
+    assert sim._num_contacts >= 1
+    assert solver.solve_velocities_colored.signatures       # the coloured path ran
+    assert solver.COLORED_MIN_CONTACTS == threshold == 20000
+
+
 def test_the_stand_in_contacts_are_laid_out_as_gather_lays_them_out():
     c = warm.stand_in_contacts()
     for name in c._fields:
@@ -32,6 +59,21 @@ def test_the_stand_in_contacts_are_laid_out_as_gather_lays_them_out():
         assert arr.flags.c_contiguous, name
         assert arr.dtype == (np.int64 if name in ("a", "b", "feat") else np.float64), name
     assert c.shift.shape == c.point.shape == c.normal.shape == (2, 3)
+
+
+@pytest.mark.heavy
+def test_peclet_warm_compiles_every_part_and_says_so():
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "peclet.cli", "warm"], capture_output=True,
+                          text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "Hertz substep and coloured solve" in done.stdout
+    assert "cached now: True" in done.stdout
+    # on disk (the index jitcache.is_cached reads; not this process's own compilations)
+    for kernel in (hertz._forces_serial, hertz._rolling_serial, solver.solve_velocities_colored):
+        assert len(kernel._cache._cache_file._load_index()) > 0, kernel
 
 
 def test_an_unknown_part_is_refused():

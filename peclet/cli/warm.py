@@ -3,7 +3,9 @@
     peclet warm
 
 Compiles the DEM step's kernels in a child process while this one compiles the quadrature (by
-measuring the page's Pall ring), so both land in Numba's on-disk cache on two cores at once;
+measuring the page's Pall ring) and then the Hertz–Mindlin substep, so they land in Numba's
+on-disk cache on two cores at once; last the colour-by-colour solve of large beds (``peclet
+stir``'s path);
 every later run (and the test suite) then starts without compiling them. Prints what was
 compiled and how long it took; nothing else is written. See :mod:`peclet.dem.warm`.
 """
@@ -31,12 +33,15 @@ def run(args):
     child = warm.start_background()
     element_model(_resolve_element("pall_ring"))          # the quadrature's kernels, here
     t_quad = time.perf_counter() - t0
+    warm.compile_step_kernels("hertz")                    # beside the detection's child
     ok = warm.finish(child)
     if not ok:                                            # compile them here instead
         warm.compile_step_kernels()
+    warm.compile_step_kernels("colored")                  # loads the detection just cached
     t = time.perf_counter() - t0
     dem = "already cached" if child is None else ("compiled beside it" if ok
                                                   else "compiled after it (the child failed)")
-    print(f"quadrature kernels: {t_quad:.0f} s; DEM step kernels: {dem}; total {t:.0f} s; "
+    print(f"quadrature kernels: {t_quad:.0f} s; DEM step kernels: {dem}; Hertz substep and "
+          f"coloured solve: after them; total {t:.0f} s; "
           f"cached now: {bool(step_kernels_cached())}")
     return 0

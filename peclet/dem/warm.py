@@ -25,8 +25,11 @@ __all__ = ["compile_step_kernels", "start_background", "running", "finish", "sto
 
 #: what a child compiles: "all" (a whole step: detection first, then the rest, which it loads
 #: from the cache when the "tail" child has written it by then) or "tail" (the step after
-#: detection, stepped with a stand-in detection)
-PARTS = ("all", "tail")
+#: detection, stepped with a stand-in detection). ``peclet warm`` also compiles what a page run
+#: does not reach: "hertz" (Hertz–Mindlin substeps with rolling resistance, after the stand-in
+#: detection) and "colored" (whole steps with the colour-by-colour solve of large contact sets
+#: forced on the tiny simulation's few contacts; it reaches the detection, so run it after "all")
+PARTS = ("all", "tail", "hertz", "colored")
 
 
 def _tiny_simulation():
@@ -74,11 +77,24 @@ def compile_step_kernels(part="all"):
     :data:`PARTS`) are compiled into Numba's cache. Returns the simulation stepped."""
     if part not in PARTS:
         raise ValueError(f"part must be one of {PARTS}, got {part!r}")
+    from peclet.dem import solver
+
     sim = _tiny_simulation()
-    if part == "tail":
+    if part in ("tail", "hertz"):
         sim._detect = lambda *args, **kwargs: stand_in_contacts()
-    for _ in range(3):
-        sim.step(1e-3)
+    if part == "hertz":
+        sim.set_hertz_material(0, 1e7, 0.3)
+        sim.set_rolling_friction(0.05)
+        sim.step_hertz(3, 1e-5)
+        return sim
+    threshold = solver.COLORED_MIN_CONTACTS
+    if part == "colored":
+        solver.COLORED_MIN_CONTACTS = 0         # a module setting, read at each step's solve
+    try:
+        for _ in range(3):
+            sim.step(1e-3)
+    finally:
+        solver.COLORED_MIN_CONTACTS = threshold
     return sim
 
 
