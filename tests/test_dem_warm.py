@@ -25,6 +25,7 @@ def test_the_tail_compile_adds_no_signature_a_real_step_does_not_have():
     assert not new, f"the stand-in detection compiled signatures a real step does not use: {new}"
 
 
+@pytest.mark.heavy
 def test_the_hertz_compile_adds_no_signature_a_real_hertz_step_does_not_have():
     # the same two pairs touching under the real detection: box 1 resting on box 0, the
     # sphere on the floor
@@ -44,6 +45,7 @@ def test_the_hertz_compile_adds_no_signature_a_real_hertz_step_does_not_have():
     assert not new, f"the stand-in detection compiled Hertz signatures a real step does not use: {new}"
 
 
+@pytest.mark.heavy
 def test_the_colored_compile_solves_colour_by_colour_and_restores_the_threshold():
     threshold = solver.COLORED_MIN_CONTACTS
     sim = warm.compile_step_kernels("colored")
