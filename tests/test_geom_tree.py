@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import page_steps
+from tiers import heavy_params
 from peclet.core import geom
 from peclet.core.geom import encoding, kernels, scene
 
@@ -155,8 +156,8 @@ def _scene(n, certified_share, seed, box=None):
     return b, g
 
 
-@pytest.mark.parametrize("periodic", [(False, False, False),
-                                      pytest.param((True, False, True), marks=pytest.mark.heavy)])
+@pytest.mark.parametrize("periodic", heavy_params([(False, False, False), (True, False, True)],
+                                                  (True, False, True)))
 def test_scene_query_equals_brute_force_bitwise(periodic):
     box = (np.zeros(3), np.full(3, 8.0))
     b, g = _scene(1000, 0.9, 3, box)

@@ -8,6 +8,8 @@ the formulas; it only sees the sign of phi.
 import numpy as np
 import pytest
 
+from tiers import heavy_params
+
 from peclet.core import geom
 from peclet.core.geom.leaves import (LEAF_NAMES, ClosedForm, closed_form_mass_properties,
                                      leaf_spec)
@@ -38,8 +40,7 @@ def _quadrature(kind, params, half):
     return b.body_properties(r, -h, h, n=32, tol=TOL)
 
 
-@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.heavy)
-                                  if k == "hollow_cylinder_shell" else k for k in sorted(CASES)])
+@pytest.mark.parametrize("kind", heavy_params(sorted(CASES), "hollow_cylinder_shell"))
 def test_closed_form_matches_quadrature(kind):
     params, half = CASES[kind]
     cf = closed_form_mass_properties(kind, params)

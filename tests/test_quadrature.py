@@ -14,6 +14,8 @@ import numba
 import numpy as np
 import pytest
 
+from tiers import heavy_params
+
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
 from peclet.core.geom.leaves import closed_form_mass_properties
@@ -51,11 +53,6 @@ def moments_per_volume(name):
 
 SMOOTH = ["sphere", "ellipsoid", "capsule", "torus"]
 CREASED = ["box", "hollow_cylinder", "cone"]
-
-
-def heavy_params(names, *heavy):
-    """``names`` as parameters, those in ``heavy`` in the heavy tier (conftest.py: --tier)."""
-    return [pytest.param(n, marks=pytest.mark.heavy) if n in heavy else n for n in names]
 
 
 _cache = {}
