@@ -431,3 +431,22 @@ def test_a_checkpoint_assembled_from_two_runs_is_refused(settled_checkpoint, tmp
     rc = main(["drum", "--resume", str(d), "--quiet"])
     err = capsys.readouterr().err
     assert rc == 2 and "parts of two runs" in err, err
+
+
+def test_the_published_protocol_is_the_lethe_drum_in_grain_units():
+    """validation/drum.py's published run: R 69 mm, L 185 mm of 5.95 mm grains at 2.198 rad/s
+    (Fr = omega^2 R / g), 6000 grains, monodisperse, caps."""
+    import sys
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    from validation.drum import LETHE, LETHE_WALLS, PUBLISHED
+    from peclet.packing.drum import grain_count, _grains
+
+    spec = DrumSpec(warmup=0.1, revolutions=0.1, ribs=LETHE_WALLS["smooth"], **LETHE).checked()
+    assert spec.radius == pytest.approx(69.0 / 5.95)
+    assert spec.length == pytest.approx(185.0 / 5.95)
+    assert spec.froude == pytest.approx(2.198 ** 2 * 0.069 / 9.81, rel=1e-12)
+    assert spec.froude == pytest.approx(PUBLISHED["froude"], rel=1e-12)
+    assert spec.ends == "caps" and spec.polydispersity == 0.0 and spec.ribs == 0
+    assert grain_count(spec, _grains(spec)) == 6000
+    # g = 9.81 D/time^2 makes the time unit sqrt(D / 1 m) s: omega back in rad/s is 2.198
+    assert spec.omega / math.sqrt(0.00595) == pytest.approx(2.198, rel=1e-12)
