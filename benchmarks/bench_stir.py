@@ -35,14 +35,20 @@ UPSTREAM_MS_8_THREADS = 3.7
 
 
 def timed_window(path, steps, threads):
-    """(ms/step, end state hash) of ``steps`` steps from the saved state at ``path``."""
+    """(ms/step, end state hash, {phase: ms/step}) of ``steps`` steps from the saved state at
+    ``path``; the phases are :attr:`Simulation.timings`' (broad and narrow phase, the solver
+    with everything after detection)."""
     numba.set_num_threads(threads)
     sim = Simulation.load(path)
     sim.step()                                   # compiled already; the first step also warms
+    before = dict(sim.timings)
     t0 = time.perf_counter()
     for _ in range(steps - 1):
         sim.step()
-    return 1e3 * (time.perf_counter() - t0) / (steps - 1), sim.state_hash()
+    ms = 1e3 * (time.perf_counter() - t0) / (steps - 1)
+    phases = {k: 1e3 * (sim.timings[k] - before[k]) / (steps - 1) for k in ("broad", "narrow",
+                                                                             "solver")}
+    return ms, sim.state_hash(), phases
 
 
 def window_timing(spec, window, cap):
@@ -63,6 +69,13 @@ def window_timing(spec, window, cap):
     return timing
 
 
+def _timing_rows(timing, window):
+    # one row per thread count: ms/step and its broad / narrow / solver split
+    return [(f"ms/step, {t} thread(s), {window} steps",
+             f"{ms:.1f} (broad {ph['broad']:.1f}, narrow {ph['narrow']:.1f}, "
+             f"solver {ph['solver']:.1f})") for t, (ms, _, ph) in timing.items()]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--grain-radius", type=float, default=0.4)
@@ -77,12 +90,12 @@ def main(argv=None):
     if a.window_only:
         timing = window_timing(spec, a.window, cap)
         payload = _report.read("stir")
-        payload.update(ms_per_step={str(t): ms for t, (ms, _) in timing.items()},
+        payload.update(ms_per_step={str(t): ms for t, (ms, _, _) in timing.items()},
+                       phase_ms_per_step={str(t): ph for t, (_, _, ph) in timing.items()},
                        window_steps=a.window,
-                       same_bits_1_vs_2=len({h for _, h in timing.values()}) == 1)
+                       same_bits_1_vs_2=len({h for _, h, _ in timing.values()}) == 1)
         _report.write("stir", payload)
-        print(_report.table([(f"ms/step, {t} thread(s), {a.window} steps", f"{ms:.1f}")
-                             for t, (ms, _) in timing.items()]
+        print(_report.table(_timing_rows(timing, a.window)
                             + [("same bits at 1 and 2 threads", payload["same_bits_1_vs_2"])],
                             ["stirred column, timing window", "value"]))
         return
@@ -91,13 +104,14 @@ def main(argv=None):
     s = res["samples"]
     curve = [dict(revolution=r, lacey=min(s, key=lambda x: abs(x["revolutions"] - r))["lacey"])
              for r in range(int(spec.revolutions) + 1)]
-    hashes = {t: h for t, (_, h) in timing.items()}
+    hashes = {t: h for t, (_, h, _) in timing.items()}
     payload = dict(grains=res["grains"], revolutions=spec.revolutions, steps=res["steps"],
                    run_seconds=res["seconds"], run_ms_per_step=res["ms_per_step"],
                    lacey=curve, escaped_max=res["escaped_max"],
                    min_wall_sdf=res["min_wall_sdf"], min_clearance=res["min_clearance"],
                    peak_speed_over_tip=res["peak_speed_over_tip"],
-                   ms_per_step={str(t): ms for t, (ms, _) in timing.items()},
+                   ms_per_step={str(t): ms for t, (ms, _, _) in timing.items()},
+                   phase_ms_per_step={str(t): ph for t, (_, _, ph) in timing.items()},
                    window_steps=a.window, same_bits_1_vs_2=len(set(hashes.values())) == 1,
                    target_ms_2_threads=TARGET_MS_2_THREADS,
                    upstream_ms_8_threads=UPSTREAM_MS_8_THREADS)
@@ -110,8 +124,7 @@ def main(argv=None):
             ("min clearance", f"{res['min_clearance']:.4f}"),
             ("peak speed / tip speed", f"{res['peak_speed_over_tip']:.3f}"),
             ("whole run", f"{res['seconds']:.0f} s, {res['ms_per_step']:.1f} ms/step")]
-    rows += [(f"ms/step, {t} thread(s), {a.window} steps", f"{ms:.1f}")
-             for t, (ms, _) in timing.items()]
+    rows += _timing_rows(timing, a.window)
     rows += [("same bits at 1 and 2 threads", payload["same_bits_1_vs_2"]),
              ("target at 2 threads / upstream at 8", f"{TARGET_MS_2_THREADS} / "
               f"{UPSTREAM_MS_8_THREADS} ms/step")]
