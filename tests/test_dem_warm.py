@@ -81,3 +81,23 @@ def test_peclet_warm_compiles_every_part_and_says_so():
 def test_an_unknown_part_is_refused():
     with pytest.raises(ValueError, match="part must be one of"):
         warm.compile_step_kernels("narrow")
+
+
+def test_the_tail_child_compiles_the_broad_phase_and_no_composed_shape_kernels():
+    # what a cold first run's children split between them: the detection child bakes the
+    # composed shape (lattice, pruning) on its way to the narrow phase; the tail child must
+    # not compile those kernels a second time, and compiles the broad phase first, for the
+    # detection child to load. A fresh process: its dispatchers list what it compiled or loaded.
+    import subprocess
+    import sys
+
+    code = ("from peclet.dem.warm import compile_step_kernels; compile_step_kernels('tail'); "
+            "from peclet.core.geom import kernels, pruning; from peclet.dem import broadphase; "
+            "print(len(kernels.bake_lattice.signatures), len(pruning._bake.signatures), "
+            "len(broadphase.find_pairs.signatures), len(broadphase.task_list.signatures))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    bake, prune, pairs, tasks = map(int, done.stdout.split())
+    assert (bake, prune) == (0, 0)
+    assert pairs == 1 and tasks == 1

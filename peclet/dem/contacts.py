@@ -151,16 +151,11 @@ class Detector:
         self._pairs = (margin, pos.copy(), big, found)
         return found
 
-    def detect(self, geo, shape_of, pos, rot, margin, margin_fraction, domain, timings,
-               reach=None, wall_reach=None, frozen=None, wall_static=None):
-        """All contacts of the state (``pos`` (N, 3), ``rot`` (N, 3, 3)) within each pair's
-        margin (:func:`peclet.dem.broadphase.task_list` of ``margin``, ``reach`` (N,) and
-        ``wall_reach`` (N, W); with ``reach`` None, ``margin`` for every pair).
-        ``margin_fraction`` sets the manifold's touching patch; ``timings`` accumulates the
-        broad and narrow phases' seconds. ``frozen`` (N,) bool (sleepers) and ``wall_static``
-        (W,) bool: the pairs of two frozen bodies and of a frozen body with a static wall are
-        not examined (None: none frozen)."""
-        t0 = time.perf_counter()
+    def candidates(self, geo, shape_of, pos, margin, domain, reach=None, wall_reach=None,
+                   frozen=None, wall_static=None):
+        """The broad phase of :meth:`detect` (its arguments): (the candidate pairs as
+        :class:`~peclet.dem.narrowphase.Tasks`, each with its own margin; the cutoff of the
+        pair search; whether any shape is composed)."""
         n = len(pos)
         radii = geo.shape_rad[shape_of]
         # the broad phase's spheres grow by each body's reach: a pair is a candidate when
@@ -174,6 +169,20 @@ class Detector:
         # each pair's margin: its base plus what its two members can close within the step
         tasks = _tasks(pa, pb, shift, n, len(geo.wall_op), margin, reach, wall_reach, frozen,
                        wall_static)
+        return tasks, cutoff, composed
+
+    def detect(self, geo, shape_of, pos, rot, margin, margin_fraction, domain, timings,
+               reach=None, wall_reach=None, frozen=None, wall_static=None):
+        """All contacts of the state (``pos`` (N, 3), ``rot`` (N, 3, 3)) within each pair's
+        margin (:func:`peclet.dem.broadphase.task_list` of ``margin``, ``reach`` (N,) and
+        ``wall_reach`` (N, W); with ``reach`` None, ``margin`` for every pair).
+        ``margin_fraction`` sets the manifold's touching patch; ``timings`` accumulates the
+        broad and narrow phases' seconds. ``frozen`` (N,) bool (sleepers) and ``wall_static``
+        (W,) bool: the pairs of two frozen bodies and of a frozen body with a static wall are
+        not examined (None: none frozen)."""
+        t0 = time.perf_counter()
+        tasks, cutoff, composed = self.candidates(geo, shape_of, pos, margin, domain, reach,
+                                                  wall_reach, frozen, wall_static)
         geo = self._with_wall_grids(geo, pos, cutoff)
         t1 = time.perf_counter()
         ntask = len(tasks.a)

@@ -4,9 +4,10 @@ On a cold Numba cache the first ``Simulation.step`` compiles the broad phase, th
 the solvers and the rotation (about a minute of one core). A run that first measures its element
 by quadrature (itself a long compilation) can have the step's kernels compiled at the same time
 in child processes: :func:`start_background` starts two children when the kernels are not
-cached, one compiling the detection (broad and narrow phase, most of the time) and one the rest
-of the step (velocity and position solves, rotation, guards) by stepping with a stand-in
-detection, so that both groups compile at once instead of one after the other. :func:`finish`
+cached, one compiling the detection (the composed shape's lattice and pruning, then the narrow
+phase, most of the time) and one the rest of the step (the broad phase first, then velocity and
+position solves, rotation, guards, by stepping spheres with a stand-in detection), so that both
+groups compile at once instead of one after the other, and no kernel in both. :func:`finish`
 waits for them before the first step, which then loads every kernel from the cache. The
 children write only Numba's cache (the same entries the run would write itself); if one fails,
 the run compiles what is missing as before. Kernel signatures do not depend on values, so a tiny
@@ -32,17 +33,15 @@ __all__ = ["compile_step_kernels", "start_background", "running", "finish", "sto
 PARTS = ("all", "tail", "hertz", "colored")
 
 
-def _tiny_simulation():
-    # a composed box, a sphere, a floor wall, periodic x and z: every kind a page run steps
+def _tiny_simulation(composed=True):
+    # a composed box, a sphere, a floor wall, periodic x and z: every kind a page run steps.
+    # composed=False: a second sphere in the box's place, for the tail child, whose kernels
+    # see arrays whose types do not depend on the shapes' kinds; it then does not compile the
+    # composed shape's lattice and pruning kernels, which the detection child compiles at
+    # the same moment (13 s of one core, twice, on a cold cache)
     from peclet.core.geom import SceneBuilder
     from peclet.dem import Simulation
 
-    b = SceneBuilder()
-    box = b.add_leaf("box", [0.3, 0.2, 0.25])
-    ni, nr, _, _ = b.encode()
-    rng = np.random.default_rng(0)
-    p = rng.normal(size=(200, 3))
-    p = p / np.abs(p).max(axis=1)[:, None] * [0.3, 0.2, 0.25]
     f = SceneBuilder()
     floor = f.add_leaf("box", [5.0, 1.0, 5.0], translation=[0.0, -1.0, 0.0])
     fi, fr, _, _ = f.encode()
@@ -50,13 +49,34 @@ def _tiny_simulation():
     sim.set_domain([-2.0, -1.0, -2.0], [2.0, 4.0, 2.0])
     sim.enable_periodicity(True, False, True)
     sim.set_gravity(0.0, -9.81, 0.0)
-    sim.add_scene_shape(ni, nr, box, p, 0.45)
+    if composed:
+        b = SceneBuilder()
+        box = b.add_leaf("box", [0.3, 0.2, 0.25])
+        ni, nr, _, _ = b.encode()
+        p = np.random.default_rng(0).normal(size=(200, 3))
+        p = p / np.abs(p).max(axis=1)[:, None] * [0.3, 0.2, 0.25]
+        sim.add_scene_shape(ni, nr, box, p, 0.45)
+    else:
+        sim.add_sphere_shape(0.45)
     sim.add_sphere_shape(0.2)
     sim.add_analytic_wall(fi, fr, floor, False, 0.2, 0.5)
     sim.set_positions(np.array([[0.0, 0.21, 0.0], [0.1, 0.7, 0.0], [0.9, 0.2, 0.3],
                                 [-0.9, 0.6, 0.4]]))
     sim.set_shape_ids(np.array([0, 0, 1, 1]))
     return sim
+
+
+def _broad_phase(sim, dt):
+    """The broad phase of a step of ``sim`` by ``dt`` (pair search and task list, with the
+    arguments a step gives it), nothing else. The tail child runs it first: the detection
+    child, which reaches the broad phase only after compiling the composed shape's kernels,
+    then loads it from the cache and goes on to the narrow phase, the longest compilation."""
+    sim._check_ready()
+    b = sim._bodies
+    pos = sim._domain.wrap(b.pos.copy())
+    base, reach, wall_reach = sim._margins(b.vel, b.omega, dt, pos)
+    sim._detector.candidates(sim._geometry(), sim._shape_table()[1], pos, base, sim._domain,
+                             reach, wall_reach)
 
 
 def stand_in_contacts():
@@ -79,7 +99,9 @@ def compile_step_kernels(part="all"):
         raise ValueError(f"part must be one of {PARTS}, got {part!r}")
     from peclet.dem import solver
 
-    sim = _tiny_simulation()
+    sim = _tiny_simulation(composed=part != "tail")
+    if part == "tail":
+        _broad_phase(sim, 1e-3)
     if part in ("tail", "hertz"):
         sim._detect = lambda *args, **kwargs: stand_in_contacts()
     if part == "hertz":
@@ -114,7 +136,9 @@ def start_background():
 
     if step_kernels_cached() is not False:
         return None
-    # the tail first: it is short, and the detection child loads it when it gets there
+    # the tail first: it is short, and it compiles the broad phase before the detection child
+    # gets there (a lower priority for the tail child, tried, starved it: the detection
+    # child then compiled the broad phase and the position solve itself)
     _started = [subprocess.Popen([sys.executable, "-c",
                                   "from peclet.dem.warm import compile_step_kernels; "
                                   f"compile_step_kernels({part!r})"],
