@@ -436,8 +436,6 @@ def test_a_checkpoint_assembled_from_two_runs_is_refused(settled_checkpoint, tmp
 def test_the_published_protocol_is_the_lethe_drum_in_grain_units():
     """validation/drum.py's published run: R 69 mm, L 185 mm of 5.95 mm grains at 2.198 rad/s
     (Fr = omega^2 R / g), 6000 grains, monodisperse, caps."""
-    import sys
-    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     from validation.drum import LETHE, LETHE_WALLS, PUBLISHED
     from peclet.packing.drum import grain_count, _grains
 

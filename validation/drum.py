@@ -98,19 +98,26 @@ LETHE_QUICK = (0.1, 0.1)
 LETHE_WALLS = {"ribbed": None, "smooth": 0}
 
 
-def published_one(args):
-    """One run of the published protocol (``args`` = (wall name, (warm-up, measured)))."""
-    wall, (warm, revs) = args
+def _timed_run(**spec):
+    """(results, seconds) of one drum run of ``DrumSpec(**spec)``, at one thread (the pool's
+    processes share the cores)."""
     import numba
+
     numba.set_num_threads(1)
     from peclet.packing.drum import DrumSpec, run_drum
 
-    spec = DrumSpec(warmup=warm, revolutions=revs, ribs=LETHE_WALLS[wall], **LETHE)
     t = time.perf_counter()
-    r = run_drum(spec, out=None, progress=False)
+    r = run_drum(DrumSpec(**spec), out=None, progress=False)
+    return r, time.perf_counter() - t
+
+
+def published_one(args):
+    """One run of the published protocol (``args`` = (wall name, (warm-up, measured)))."""
+    wall, (warm, revs) = args
+    r, seconds = _timed_run(warmup=warm, revolutions=revs, ribs=LETHE_WALLS[wall], **LETHE)
     return dict(wall=wall, froude=r["spec"]["froude"], regime=r["regime"], angle=r["angle"],
                 grains=r["grains"], fill=r["fill_measured"], steps=r["steps"],
-                seconds=time.perf_counter() - t, schedule=dict(warmup=warm, revolutions=revs))
+                seconds=seconds, schedule=dict(warmup=warm, revolutions=revs))
 
 
 def published_lines(rows):
@@ -129,18 +136,12 @@ def published_lines(rows):
 
 def one(args):
     fr, mu, sched = args
-    import numba
-
-    numba.set_num_threads(1)
-    from peclet.packing.drum import DrumSpec, run_drum
-
     spin, warm, revs = sched
-    spec = DrumSpec(froude=fr, mu=mu, spinup=spin, warmup=warm, revolutions=revs, **DRUM)
-    t = time.perf_counter()
-    r = run_drum(spec, out=None, progress=False)
+    r, seconds = _timed_run(froude=fr, mu=mu, spinup=spin, warmup=warm, revolutions=revs,
+                            **DRUM)
     return dict(froude=fr, mu=mu, regime=r["regime"], mellmann=r["mellmann"],
                 angle=r["angle"], criteria=r["criteria"], fill=r["fill_measured"],
-                grains=r["grains"], steps=r["steps"], seconds=time.perf_counter() - t,
+                grains=r["grains"], steps=r["steps"], seconds=seconds,
                 schedule=dict(spinup=spin, warmup=warm, revolutions=revs))
 
 

@@ -66,17 +66,17 @@ def _tiny_simulation(composed=True):
     return sim
 
 
-def _broad_phase(sim, dt):
-    """The broad phase of a step of ``sim`` by ``dt`` (pair search and task list, with the
-    arguments a step gives it), nothing else. The tail child runs it first: the detection
-    child, which reaches the broad phase only after compiling the composed shape's kernels,
-    then loads it from the cache and goes on to the narrow phase, the longest compilation."""
-    sim._check_ready()
-    b = sim._bodies
-    pos = sim._domain.wrap(b.pos.copy())
-    base, reach, wall_reach = sim._margins(b.vel, b.omega, dt, pos)
-    sim._detector.candidates(sim._geometry(), sim._shape_table()[1], pos, base, sim._domain,
-                             reach, wall_reach)
+def _stand_in_detection(sim):
+    """A detection for ``sim._detect`` that runs the real broad phase on the arguments the
+    step passes (so with its signatures) and returns :func:`stand_in_contacts`. The tail child
+    steps with it: the broad phase compiles there first, and the detection child, which
+    reaches it only after compiling the composed shape's kernels, loads it from the cache and
+    goes on to the narrow phase, the longest compilation."""
+    def detect(pos, rot, margin, reach=None, wall_reach=None, frozen=None, wall_static=None):
+        sim._detector.candidates(sim._geometry(), sim._shape_table()[1], pos, margin,
+                                 sim._domain, reach, wall_reach, frozen, wall_static)
+        return stand_in_contacts()
+    return detect
 
 
 def stand_in_contacts():
@@ -101,8 +101,8 @@ def compile_step_kernels(part="all"):
 
     sim = _tiny_simulation(composed=part != "tail")
     if part == "tail":
-        _broad_phase(sim, 1e-3)
-    if part in ("tail", "hertz"):
+        sim._detect = _stand_in_detection(sim)
+    elif part == "hertz":
         sim._detect = lambda *args, **kwargs: stand_in_contacts()
     if part == "hertz":
         sim.set_hertz_material(0, 1e7, 0.3)
