@@ -75,13 +75,13 @@ def pytest_sessionstart(session):
         return
     import time
 
-    from peclet.core.geom.quadrature.refine import integrate_cells
+    from peclet.core.geom.quadrature.refine import _integrate_share
     from peclet.core.jitcache import is_cached
     from peclet.dem import warm
 
     t = time.perf_counter()
     children = warm.start_background()
-    quadrature = is_cached(integrate_cells) is False
+    quadrature = is_cached(_integrate_share) is False
     if quadrature:
         from peclet.packing.api import _resolve_element, element_model
 

@@ -32,7 +32,8 @@ exact evaluation, so the hits are again those of a scan.
 The hits are reduced to at most ``MAX_PER_TASK`` contacts per task (:mod:`peclet.dem.manifold`),
 written into the task's own slots (one for a task with a sphere in it, which tests one point).
 
-Determinism: tasks run in parallel (fixed-size chunks dealt to a fixed number of workers),
+Determinism: tasks run in parallel (fixed-size chunks dealt to a fixed number of workers,
+the workers to the threads),
 every task writes only its own slots; all choices break ties by the lowest index.
 """
 from __future__ import annotations
@@ -43,6 +44,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from peclet.core.shares import run_shares
 from peclet.core.geom.kernels import MAX_STACK, STACK_COLS, eval_point
 from peclet.core.geom.pruning import pruned_range
 from peclet.dem.distgrid import lower_bound
@@ -350,26 +352,26 @@ def _direction(t, d, old_t, prev, cur, xa, Ra, s, so, geo, zero, tree, nsign, fb
     return nh, lp
 
 
-@njit(cache=True)
-def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots, delta, old,
-            prev, cur, scratch):
-    """Worker ``worker`` of ``nw``: the chunks worker, worker + nw, ... of ``size`` tasks
-    (interleaved, so that the workers' loads even out); gathers each task's hits and reduces
-    them into its own slots. ``old`` (T,): each task's index in ``prev`` (-1: none); the
-    worker lists probes in its own share of ``cur``'s buffer and reports its use (or -1 on
-    overflow) in ``cur.fill[worker]``. Its scratch is ``scratch``'s row ``worker``: a task's
-    hit buffer is large enough for every probe of both bodies."""
+@njit(cache=True, nogil=True)
+def _workers(first, step, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots, delta,
+             old, prev, cur, scratch):
+    """Workers ``first``, ``first + step``, ... of ``nw`` (a share of
+    :func:`peclet.core.shares.run_shares`). Worker ``worker`` takes the chunks worker,
+    worker + nw, ... of ``size`` tasks (interleaved, so that the workers' loads even out);
+    gathers each task's hits and reduces them into its own slots. ``old`` (T,): each task's
+    index in ``prev`` (-1: none); the worker lists probes in its own share of ``cur``'s
+    buffer and reports its use (or -1 on overflow) in ``cur.fill[worker]``. Its scratch is
+    ``scratch``'s row ``worker``: a task's hit buffer is large enough for every probe of both
+    bodies."""
     # the tables are taken out of the tuple once: a field read in the per-probe loop would
     # cost a reference-count update per read
     shape_kind, shape_rad, shape_lip = geo.shape_kind, geo.shape_rad, geo.shape_lip
     lk, lr = geo.lk, geo.lr
     ops, blocks, pboff, pob, pdims, sop = (geo.ops, geo.block_range, geo.shape_pboff,
                                            geo.shape_pob, geo.shape_pdims, geo.shape_op)
-    grid, goff, gdims, goh = geo.grid, geo.shape_grid_off, geo.shape_grid_dims, geo.shape_grid_oh
+    grid, goff = geo.grid, geo.shape_grid_off
+    gdims, goh = geo.shape_grid_dims, geo.shape_grid_oh
     nogrid = np.zeros(3, np.int64)
-    st = scratch.st[worker]
-    hits = scratch.hits[worker]
-    lab = scratch.lab[worker]
     reps = np.empty(MAX_CLUSTERS, np.int64)
     pose = np.empty(POSE)
     xb = np.empty(3)
@@ -382,107 +384,113 @@ def _worker(worker, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots
     one_i = np.int64(1)
     feat_dir = np.int64(FEATURE_DIR)
     share = cur.probe.shape[0] // nw
-    lpos = worker * share
-    lend = lpos + share
     ntask = tasks.a.shape[0]
     nchunk = (ntask + size - 1) // size
-    for ch in range(worker, nchunk, nw):
-        for t in range(ch * size, min(ntask, (ch + 1) * size)):
-            a = tasks.a[t]
-            b = tasks.b[t]
-            margin = tasks.margin[t]
-            sa = shape_of[a]
-            nh = zero_i
-            if b >= 0 and shape_kind[sa] == 0 and shape_kind[shape_of[b]] == 0:
-                # two spheres: the centre line, read straight from the arrays (the views and
-                # program tuples of the other cases cost more than this whole test)
-                sb = shape_of[b]
-                dx = pos[a, 0] - (pos[b, 0] + tasks.shift[t, 0])
-                dy = pos[a, 1] - (pos[b, 1] + tasks.shift[t, 1])
-                dz = pos[a, 2] - (pos[b, 2] + tasks.shift[t, 2])
-                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                gap = dist - shape_rad[sa] - shape_rad[sb]
-                # at most one hit, written straight into the task's slot (what the manifold
-                # reduction makes of a single hit)
-                slots.count[t] = 0
-                if gap < margin:
-                    if dist > 0.0:
-                        nx = dx / dist
-                        ny = dy / dist
-                        nz = dz / dist
+    for worker in range(first, nw, step):
+        st = scratch.st[worker]
+        hits = scratch.hits[worker]
+        lab = scratch.lab[worker]
+        lpos = worker * share
+        lend = lpos + share
+        for ch in range(worker, nchunk, nw):
+            for t in range(ch * size, min(ntask, (ch + 1) * size)):
+                a = tasks.a[t]
+                b = tasks.b[t]
+                margin = tasks.margin[t]
+                sa = shape_of[a]
+                nh = zero_i
+                if b >= 0 and shape_kind[sa] == 0 and shape_kind[shape_of[b]] == 0:
+                    # two spheres: the centre line, read straight from the arrays (the views and
+                    # program tuples of the other cases cost more than this whole test)
+                    sb = shape_of[b]
+                    dx = pos[a, 0] - (pos[b, 0] + tasks.shift[t, 0])
+                    dy = pos[a, 1] - (pos[b, 1] + tasks.shift[t, 1])
+                    dz = pos[a, 2] - (pos[b, 2] + tasks.shift[t, 2])
+                    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                    gap = dist - shape_rad[sa] - shape_rad[sb]
+                    # at most one hit, written straight into the task's slot (what the manifold
+                    # reduction makes of a single hit)
+                    slots.count[t] = 0
+                    if gap < margin:
+                        if dist > 0.0:
+                            nx = dx / dist
+                            ny = dy / dist
+                            nz = dz / dist
+                        else:
+                            nx, ny, nz = 0.0, 1.0, 0.0
+                        h = shape_rad[sa] + 0.5 * gap
+                        o = slots.first[t]
+                        slots.point[o, 0] = pos[a, 0] - h * nx
+                        slots.point[o, 1] = pos[a, 1] - h * ny
+                        slots.point[o, 2] = pos[a, 2] - h * nz
+                        slots.normal[o, 0] = nx
+                        slots.normal[o, 1] = ny
+                        slots.normal[o, 2] = nz
+                        slots.gap[o] = gap
+                        slots.feat[o] = 0
+                        slots.count[t] = 1
+                    continue
+                xa = pos[a]
+                Ra = rot[a]
+                ot = old[t]
+                if b >= 0:
+                    sb = shape_of[b]
+                    for e in range(3):
+                        xb[e] = pos[b, e] + tasks.shift[t, e]
+                    Rb = rot[b]
+                    prog_a = (ops, blocks, pboff[sa], pob[sa], pdims[sa], sop[sa, 0],
+                              sop[sa, 1])
+                    prog_b = (ops, blocks, pboff[sb], pob[sb], pdims[sb], sop[sb, 0],
+                              sop[sb, 1])
+                    if shape_kind[sa] == 0:
+                        nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb,
+                                               prog_b, 1.0, shape_lip[sb], shape_rad[sb], 1.0,
+                                               zero_i, margin, margin, lk, lr, grid, goff[sb],
+                                               gdims[sb], goh[sb], st, hits, nh)
+                    elif shape_kind[sb] == 0:
+                        nh, _ = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra,
+                                               prog_a, 1.0, shape_lip[sa], shape_rad[sa], -1.0,
+                                               feat_dir, margin, margin, lk, lr, grid, goff[sa],
+                                               gdims[sa], goh[sa], st, hits, nh)
                     else:
-                        nx, ny, nz = 0.0, 1.0, 0.0
-                    h = shape_rad[sa] + 0.5 * gap
-                    o = slots.first[t]
-                    slots.point[o, 0] = pos[a, 0] - h * nx
-                    slots.point[o, 1] = pos[a, 1] - h * ny
-                    slots.point[o, 2] = pos[a, 2] - h * nz
-                    slots.normal[o, 0] = nx
-                    slots.normal[o, 1] = ny
-                    slots.normal[o, 2] = nz
-                    slots.gap[o] = gap
-                    slots.feat[o] = 0
-                    slots.count[t] = 1
-                continue
-            xa = pos[a]
-            Ra = rot[a]
-            ot = old[t]
-            if b >= 0:
-                sb = shape_of[b]
-                for e in range(3):
-                    xb[e] = pos[b, e] + tasks.shift[t, e]
-                Rb = rot[b]
-                prog_a = (ops, blocks, pboff[sa], pob[sa], pdims[sa], sop[sa, 0], sop[sa, 1])
-                prog_b = (ops, blocks, pboff[sb], pob[sb], pdims[sb], sop[sb, 0], sop[sb, 1])
-                if shape_kind[sa] == 0:
-                    nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xb, Rb, prog_b,
-                                           1.0, shape_lip[sb], shape_rad[sb], 1.0, zero_i, margin,
-                                           margin, lk, lr, grid, goff[sb], gdims[sb], goh[sb],
-                                           st, hits, nh)
-                elif shape_kind[sb] == 0:
-                    nh, _ = _point_vs_tree(xb[0], xb[1], xb[2], shape_rad[sb], xa, Ra, prog_a,
-                                           1.0, shape_lip[sa], shape_rad[sa], -1.0, feat_dir,
-                                           margin, margin, lk, lr, grid, goff[sa], gdims[sa],
-                                           goh[sa], st, hits, nh)
+                        # both ways: a's probes in b's tree, then b's probes in a's tree
+                        tree = (xb, Rb, prog_b, 1.0, shape_lip[sb], shape_rad[sb], grid,
+                                goff[sb], gdims[sb], goh[sb])
+                        nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, sb, geo,
+                                              origin, tree, 1.0, zero_i, margin, delta, st,
+                                              hits, nh, pose, lpos, lend)
+                        tree = (xa, Ra, prog_a, 1.0, shape_lip[sa], shape_rad[sa], grid,
+                                goff[sa], gdims[sa], goh[sa])
+                        nh, lpos = _direction(t, one_i, ot, prev, cur, xb, Rb, sb, sa, geo,
+                                              origin, tree, -1.0, feat_dir, margin, delta, st,
+                                              hits, nh, pose, lpos, lend)
                 else:
-                    # both ways: a's probes in b's tree, then b's probes in a's tree
-                    tree = (xb, Rb, prog_b, 1.0, shape_lip[sb], shape_rad[sb], grid, goff[sb],
-                            gdims[sb], goh[sb])
-                    nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, sb, geo, origin,
-                                          tree, 1.0, zero_i, margin, delta, st, hits, nh, pose,
-                                          lpos, lend)
-                    tree = (xa, Ra, prog_a, 1.0, shape_lip[sa], shape_rad[sa], grid, goff[sa],
-                            gdims[sa], goh[sa])
-                    nh, lpos = _direction(t, one_i, ot, prev, cur, xb, Rb, sb, sa, geo, origin,
-                                          tree, -1.0, feat_dir, margin, delta, st, hits, nh,
-                                          pose, lpos, lend)
-            else:
-                w = -1 - b
-                # a wall has no lattice: its whole program
-                prog_w = (ops, blocks, zero_i, nolattice, nogrid, geo.wall_op[w, 0],
-                          geo.wall_op[w, 1])
-                # the wall at its pose (identity for a wall that never moved)
-                xw = geo.wall_pos[w]
-                Rw = geo.wall_rot[w]
-                # its distance grid (of the signed field; dims 0: none) bounds it cheaply
-                wgo, wgd, wgh = geo.wall_grid_off[w], geo.wall_grid_dims[w], geo.wall_grid_oh[w]
-                if shape_kind[sa] == 0:
-                    nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xw, Rw,
-                                           prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
-                                           1.0, zero_i, margin, margin, lk, lr, grid, wgo,
-                                           wgd, wgh, st, hits, nh)
-                else:
-                    tree = (xw, Rw, prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
-                            grid, wgo, wgd, wgh)
-                    nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, b, geo, origin,
-                                          tree, 1.0, zero_i, margin, delta, st, hits, nh, pose,
-                                          lpos, lend)
-            slots.count[t] = reduce_hits(hits, nh, lab, reps, tol2, touch, slots.first[t],
-                                         slots.point, slots.normal, slots.gap, slots.feat)
-    cur.fill[worker] = lpos - worker * share if lpos <= lend else -1
+                    w = -1 - b
+                    # a wall has no lattice: its whole program
+                    prog_w = (ops, blocks, zero_i, nolattice, nogrid, geo.wall_op[w, 0],
+                              geo.wall_op[w, 1])
+                    # the wall at its pose (identity for a wall that never moved)
+                    xw = geo.wall_pos[w]
+                    Rw = geo.wall_rot[w]
+                    # its distance grid (of the signed field; dims 0: none) bounds it cheaply
+                    wgo, wgd = geo.wall_grid_off[w], geo.wall_grid_dims[w]
+                    wgh = geo.wall_grid_oh[w]
+                    if shape_kind[sa] == 0:
+                        nh, _ = _point_vs_tree(xa[0], xa[1], xa[2], shape_rad[sa], xw, Rw,
+                                               prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
+                                               1.0, zero_i, margin, margin, lk, lr, grid, wgo,
+                                               wgd, wgh, st, hits, nh)
+                    else:
+                        tree = (xw, Rw, prog_w, geo.wall_sign[w], geo.wall_lip[w], np.inf,
+                                grid, wgo, wgd, wgh)
+                        nh, lpos = _direction(t, zero_i, ot, prev, cur, xa, Ra, sa, b, geo,
+                                              origin, tree, 1.0, zero_i, margin, delta, st,
+                                              hits, nh, pose, lpos, lend)
+                slots.count[t] = reduce_hits(hits, nh, lab, reps, tol2, touch, slots.first[t],
+                                             slots.point, slots.normal, slots.gap, slots.feat)
+        cur.fill[worker] = lpos - worker * share if lpos <= lend else -1
 
 
-@njit(cache=True, parallel=True)
 def narrow_phase(tasks, pos, rot, shape_of, geo, tol2, touch, chunks, slots, delta, old, prev,
                  cur, scratch):
     """Contacts of every task into its own slots (from ``slots.first[t]``, at most
@@ -497,19 +505,15 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, tol2, touch, chunks, slots, del
     ``delta`` the scans' extra reach (< 0: nothing listed, every direction scanned).
     ``scratch``: a :class:`Scratch` for at least ``geo.max_hits`` hits.
     ``chunks`` = 1 runs serially in the calling thread (small problems, where a parallel launch
-    costs more than it saves), otherwise WORKERS workers run in parallel, each taking every
-    WORKERS-th chunk of tasks (TASK_CHUNK, or about CHUNKS_PER_WORKER chunks per worker on a
-    large task list). Either way every task writes only its own slots, and
-    its hits are those of a scan, so the result is identical."""
+    costs more than it saves), otherwise WORKERS workers, each taking every WORKERS-th chunk
+    of tasks (TASK_CHUNK, or about CHUNKS_PER_WORKER chunks per worker on a large task list),
+    are dealt to the threads (:func:`peclet.core.shares.run_shares`). Either way every task
+    writes only its own slots, and its hits are those of a scan, so the result is identical."""
     nw = WORKERS if chunks > 1 else 1
-    for k in range(nw, WORKERS):
-        cur.fill[k] = 0
+    cur.fill[nw:] = 0
     size = max(TASK_CHUNK, tasks.a.shape[0] // (WORKERS * CHUNKS_PER_WORKER))
-    for k in prange(nw):
-        # k is unsigned in the parallel loop's body and signed where Numba types the call:
-        # one int64 signature instead of two compilations of the whole worker
-        _worker(np.int64(k), np.int64(nw), np.int64(size), tasks, pos, rot, shape_of,
-                geo, tol2, touch, slots, delta, old, prev, cur, scratch)
+    run_shares(_workers, nw, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots, delta,
+               old, prev, cur, scratch)
 
 
 @njit(cache=True)

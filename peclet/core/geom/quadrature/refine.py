@@ -9,14 +9,14 @@ order, so the result is bitwise identical at any thread count.
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ...shares import run_shares
 from .. import kernels as K
 from .cell_rule import cell_bound, integrate_cell
 from .constants import EPS, MAX_BREAKS, MAX_CELLS, MAX_DEPTH, ROUND_ULPS, SCRATCH_ROWS, SEEDS
 
 
-@njit(cache=True, parallel=True)
 def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
     """Integrate every cell of ``cells`` (N, 6: lo, hi) on its own.
 
@@ -28,19 +28,32 @@ def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
     A cell's estimate is |I7 - I5| per moment, plus ROUND_ULPS ulps of the cell's moment
     bound where the two rules differ at all (each root is exact only to a few ulps of its
     coordinates, so the estimate still bounds the error once the rule error is below
-    round-off). Cells are independent: the results do not depend on the thread count."""
+    round-off). Cells are independent and dealt to the threads
+    (:func:`peclet.core.shares.run_shares`): the results do not depend on the thread count."""
     n = cells.shape[0]
     mom = np.zeros((n, 10))
     err = np.zeros((n, 10))
     code = np.zeros(n, dtype=np.int64)
+    run_shares(_integrate_share, n, ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen,
+               mom, err, code)
+    return mom, err, code
+
+
+@njit(cache=True, nogil=True)
+def _integrate_share(first, step, ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen,
+                     mom, err, code):
+    """The cells ``first``, ``first + step``, ... of :func:`integrate_cells`, into their rows
+    of ``mom``, ``err`` and ``code``."""
     P = (ops, lk, lr, ob, oe)
     G = (g5x, g5w, g7x, g7w)
-    for c in prange(n):
-        st = np.empty((K.MAX_STACK, K.STACK_COLS))
-        S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
-        seeds = np.empty((MAX_BREAKS, SEEDS))
-        nseed = np.zeros(MAX_BREAKS, dtype=np.int64)
-        a5 = np.zeros(10)
+    st = np.empty((K.MAX_STACK, K.STACK_COLS))
+    S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
+    seeds = np.empty((MAX_BREAKS, SEEDS))
+    nseed = np.empty(MAX_BREAKS, dtype=np.int64)
+    a5 = np.empty(10)
+    for c in range(first, cells.shape[0], step):
+        nseed[:] = 0
+        a5[:] = 0.0
         clo = cells[c, 0:3].copy()
         chi = cells[c, 3:6].copy()
         est = integrate_cell(P, clo, chi, lip, G, cen, st, S, seeds, nseed, a5, mom[c])
@@ -56,7 +69,6 @@ def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
                 rounded = rounded or mom[c, m] != a5[m]
             if rounded:
                 cell_bound(err[c], clo, chi, cen, ROUND_ULPS * EPS)
-    return mom, err, code
 
 
 def arrays_key(arrays):

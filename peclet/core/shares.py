@@ -1,0 +1,77 @@
+"""Parallel work on Python threads over a fixed decomposition, without a Numba parallel region.
+
+A kernel compiled with ``nogil=True`` that takes ``(first, step, ...)`` and does the items
+``first, first + step, ...`` of its work (each item writing only its own outputs) is run by
+:func:`run_shares`: share 0 in the calling thread, the others on a small pool of Python threads,
+one share per thread of Numba's current thread count. The items and what each writes do not
+depend on how they are dealt, so the results are the same bits at any thread count.
+
+Why not ``@njit(parallel=True)`` with a ``prange`` over the items: Numba links a callee's code
+into every function that calls it and optimises and emits it again there, and a parallel region
+is two such functions (the region's kernel and its launcher). Around the narrow phase's worker
+that cost 8.5 s of a cold first run's compilation (a serial wrapper 2.3 s, none at all here),
+around the quadrature's cell integration 4 s; launching two shares from Python costs tens of
+microseconds per call, against milliseconds of work where the callers choose to go parallel.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+
+__all__ = ["share_count", "run_shares"]
+
+_lock = threading.Lock()
+_pool: ThreadPoolExecutor | None = None
+_pool_size = 0
+
+
+def _forget_pool():
+    # a forked child inherits the pool object but not its threads: it starts its own
+    global _pool, _pool_size
+    _pool, _pool_size = None, 0
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def share_count(n):
+    """How many shares :func:`run_shares` deals ``n`` items into: Numba's current thread count
+    (``numba.get_num_threads()``, which ``NUMBA_NUM_THREADS`` and ``numba.set_num_threads``
+    set), at most ``n``, at least 1."""
+    return max(1, min(int(numba.get_num_threads()), int(n)))
+
+
+def _executor(workers):
+    global _pool, _pool_size
+    with _lock:
+        if _pool is None or _pool_size < workers:
+            old = _pool
+            _pool, _pool_size = ThreadPoolExecutor(workers, "peclet-share"), workers
+            if old is not None:
+                old.shutdown(wait=False)
+        return _pool
+
+
+def run_shares(kernel, n, *args):
+    """Call ``kernel(first, step, *args)`` for ``first`` = 0 .. step - 1 with ``step`` =
+    :func:`share_count` (``n``), share 0 in the calling thread and the others at once on
+    pool threads; return when all are done. ``kernel`` must release the GIL
+    (``@njit(nogil=True)``) for the shares to overlap, and each item must write only its own
+    outputs. An exception in any share is raised here (the first share's first)."""
+    step = share_count(n)
+    if step == 1:
+        kernel(0, 1, *args)
+        return
+    pool = _executor(step - 1)
+    others = [pool.submit(kernel, first, step, *args) for first in range(1, step)]
+    try:
+        kernel(0, step, *args)
+    finally:
+        # every share finishes before the outputs are read (or an error is raised)
+        errors = [f.exception() for f in others]
+    for e in errors:
+        if e is not None:
+            raise e

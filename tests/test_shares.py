@@ -1,0 +1,88 @@
+"""peclet.core.shares: a nogil kernel's shares on Python threads, every item done once, the
+same outputs at any thread count, errors raised in the caller."""
+import threading
+
+import numba
+import numpy as np
+import pytest
+from numba import njit
+
+from peclet.core.shares import run_shares, share_count
+
+
+@njit(nogil=True)
+def _mark(first, step, out, seen):
+    # each item writes its own row: its value and which share did it
+    for i in range(first, out.shape[0], step):
+        out[i] = np.sqrt(i + 0.5) * 3.0
+        seen[i] += first + 1
+
+
+@njit(nogil=True)
+def _fail_at(first, step, bad):
+    for i in range(first, 10, step):
+        if i == bad:
+            raise ValueError("item out of range")
+
+
+def _run(threads, n):
+    old = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        out = np.zeros(n)
+        seen = np.zeros(n, np.int64)
+        run_shares(_mark, n, out, seen)
+        return out, seen
+    finally:
+        numba.set_num_threads(old)
+
+
+def test_every_item_once_and_the_same_bits_at_one_and_two_threads():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
+    one, seen1 = _run(1, 1001)
+    two, seen2 = _run(2, 1001)
+    assert np.all(seen1 == 1)                   # one share did everything
+    assert set(np.unique(seen2)) == {1, 2}      # both shares worked, each item exactly once
+    assert np.array_equal(seen2[::2], np.ones(501, np.int64))
+    assert one.tobytes() == two.tobytes()
+
+
+def test_shares_never_exceed_the_items_or_the_threads():
+    assert share_count(0) == 1
+    assert share_count(1) == 1
+    assert share_count(10 ** 6) == numba.get_num_threads()
+
+
+def test_an_error_in_a_pool_share_reaches_the_caller():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
+    old = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        with pytest.raises(ValueError, match="item out of range"):
+            run_shares(_fail_at, 10, 3)             # item 3: share 1, on a pool thread
+        with pytest.raises(ValueError, match="item out of range"):
+            run_shares(_fail_at, 10, 4)             # item 4: share 0, the calling thread
+        run_shares(_fail_at, 10, 99)                # and the pool still works afterwards
+    finally:
+        numba.set_num_threads(old)
+
+
+def test_the_shares_overlap_in_time():
+    # the pool's share runs while the calling thread's is still running: a share that waits
+    # for the other to start would hang on one thread and finish on two
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
+    started = [threading.Event(), threading.Event()]
+
+    def kernel(first, step):
+        started[first].set()
+        assert started[1 - first].wait(timeout=30), "the other share never ran alongside"
+
+    old = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        run_shares(kernel, 2)
+    finally:
+        numba.set_num_threads(old)
