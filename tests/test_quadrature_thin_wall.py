@@ -1,0 +1,36 @@
+"""A known defect, kept visible: on a coarse top grid the quadrature can miss part of a thin
+walled element and report an error estimate far below its true error.
+
+The Pall ring of wall t/D = 0.024 (the sweep's thinnest) at n = 12 top cells (0.103 D each,
+four wall thicknesses) gives s = 0.072793 with an estimate of 1.1e-6, where n = 8, 16, 24 and 32
+agree on 0.0732175 to 1e-9: the error is 4.2e-4, 400 times the estimate. A plain tube of the
+same wall is right at n = 8, 12 and 16, so what is missed lies at the windows or the webs (not
+located yet); the Newton projection that looks for a surface a cell's probe lines stepped
+over (``cell_rule.surface_in_cell``) is a heuristic. The pipeline measures at n = 32, where the
+figure is right; a user's own coarse n is not protected yet."""
+import pytest
+
+from peclet.packing.elements import pall_ring_of_thickness
+
+
+def _s(n):
+    el = pall_ring_of_thickness(0.024)
+    lo, hi = el.bounds
+    p = el.builder.body_properties(el.root, lo, hi, n=n, tol=1e-4)
+    return p.volume / el.envelope_volume, p.volume_error / el.envelope_volume
+
+
+@pytest.mark.heavy
+def test_the_fine_grid_agrees_with_the_converged_ring():
+    s8, e8 = _s(8)
+    s16, e16 = _s(16)
+    assert abs(s8 - s16) <= e8 + e16
+
+
+@pytest.mark.heavy
+@pytest.mark.xfail(strict=True, reason="n = 12 misses part of the thin ring: true error "
+                   "4.2e-4 against an estimate of 1.1e-6 (surface_in_cell is a heuristic)")
+def test_a_coarse_grid_error_estimate_bounds_its_error():
+    s12, e12 = _s(12)
+    s16, e16 = _s(16)
+    assert abs(s12 - s16) <= e12 + e16
