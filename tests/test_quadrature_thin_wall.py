@@ -5,8 +5,8 @@ The Pall ring of wall t/D = 0.024 (the sweep's thinnest) at n = 12 gives s = 0.0
 estimate of 1.1e-6, where n = 8, 16, 24 and 32 agree on 0.0732175 to 1e-9: the error is 4.2e-4,
 400 times the estimate. The missing volume (3.3e-4 D^3) is 61% of one web bar, and the webs
 (0.024 x 0.024 D across) are what ``body_properties``' docstring warns of: a piece narrower than
-box / n (here 1.12 / 12 = 0.093 D) across both transverse axes can be found late or missed (n = 8 finds it
-by the luck of alignment). A plain tube of the same wall is right at n = 8, 12 and 16. The
+box / n (here 1.12 / 12 = 0.093 D) across both transverse axes can be found late or missed (n = 8
+finds it by the luck of alignment). A plain tube of the same wall is right at n = 8, 12 and 16. The
 documented limit holds; what is wrong is that the error estimate does not show it. The pipeline
 measures at n = 32, where the figure is right."""
 import pytest
