@@ -285,7 +285,7 @@ def _locate_v(C, u, steps, x, hx, lx, y, hy, ny, ly):
     return hi_, h_hi, n_hi, l_hi
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
     """The first change of the v-structure hash in (x, y] (hx at x, with its v-piece
     midpoints S[R_MLO, :nlo]; hy at y, midpoints S[R_MY, :ny]), by bisection to 2^-steps.
@@ -364,7 +364,7 @@ vbreaks = _instance(_scan, "vbreaks")
 _uscan = _instance(_scan, "ubreaks_scan")
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def probe(C, u, steps, ra, na, rb, nb):
     """The v-structure at u (:func:`vbreaks`), probed also at S[ra, :na] and S[rb, :nb]
     (each sorted): (break count, hash); count -1 on overflow."""
@@ -372,7 +372,7 @@ def probe(C, u, steps, ra, na, rb, nb):
     return vbreaks(C, u, steps, nex)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def probe_mids(C, u, steps, ra, na, rb, nb, dst):
     """:func:`probe`, keeping the piece midpoints (either source row may be dst): (count of
     the midpoints, now in S[dst], hash); count -1 on overflow."""
@@ -382,7 +382,7 @@ def probe_mids(C, u, steps, ra, na, rb, nb, dst):
     return piece_mids(C.S, m, dst), h
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def ubreaks(C, seeds, nseed, reprobes):
     """The u-level scan of the cut cell ``C`` (see :func:`_scan`): the count m of u-breaks
     in S[R_UBRK, :m] (flags in S[R_UFLAG]), -1 on overflow."""

@@ -60,7 +60,7 @@ def cell_rules(C, G, seeds, nseed, reprobes, a5, a7):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _u_piece_rules(C, G, seeds, nseed, pu, pu0, pu1, s0, s1, a5, a7):
     """Both rules across the u-piece number ``pu``, [pu0, pu1] (s0 / s1: an end is a
     tangency, see :func:`.pieces.piece_node`), added to a5 / a7. False on an overflow.
@@ -97,7 +97,7 @@ def _u_piece_rules(C, G, seeds, nseed, pu, pu0, pu1, s0, s1, a5, a7):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _v_rule(C, gx, gw, u, wu, m, acc):
     """The rule along v at outer node u (weight wu): Gauss nodes gx / weights gw on each
     v-piece of S[R_VBRK, :m], the height integral exact along each line, added to acc."""
@@ -255,7 +255,7 @@ def surface_in_cell(ops, lk, lr, ob, oe, clo, chi, st):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def integrate_cell(P, clo, chi, lip, G, cen, st, S, seeds, nseed, a5, a7):
     """Integrate one cell into a5 / a7 (its raw moments by the 5- and 7-point rules; equal,
     and exact, for a cell the certificate decides). Returns the error estimate max |a7 - a5|,
