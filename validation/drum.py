@@ -45,9 +45,9 @@ smooth wall as Lethe's. Measured (2026-11-27): ribbed 31.6 +- 0.6 deg (cascading
 28.5 +- 1.5 deg (rolling), against 26: 5.6 and 2.5 degrees steeper (the same runs with R
 differing in its last bit gave 31.2 and 28.7: chaos moves the angle by a few tenths; a whole
 revolution of warm-up and one measured gave 31.2 +- 0.6 and 28.6 +- 0.7: the half revolutions
-are long enough). Our grains are rigid; Lethe's
-are soft (Young's modulus 2.4 MPa, Hertz) and reach 26 deg only with rolling friction, which
-steepens a slope: what makes ours steeper is not settled here.
+are long enough). Our grains are rigid; Lethe's are soft (Young's modulus 2.4 MPa, Hertz) and
+reach 26 deg only with rolling friction, which steepens a slope: what makes ours steeper is not
+settled here.
 For a second bracket: glass beads (d = 0.5 mm) flow steadily on a rough incline between
 theta_1 = 20.9 and theta_2 = 32.8 deg (Pouliquen, Phys. Fluids 11 (1999) 542; the mu(I)
 constants of Jop, Forterre & Pouliquen, Nature 441 (2006) 727), quoted from memory.

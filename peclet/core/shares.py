@@ -10,8 +10,12 @@ Why not ``@njit(parallel=True)`` with a ``prange`` over the items: Numba links a
 into every function that calls it and optimises and emits it again there, and a parallel region
 is two such functions (the region's kernel and its launcher). Around the narrow phase's worker
 that cost 8.5 s of a cold first run's compilation (a serial wrapper 2.3 s, none at all here),
-around the quadrature's cell integration 4 s; launching two shares from Python costs tens of
-microseconds per call, against milliseconds of work where the callers choose to go parallel.
+around the quadrature's cell integration 4 s. The price is the launch: handing a share to a
+pool thread and waiting for it took 0.2-0.25 ms on the 2-core machine this was measured on
+(Numba's own workers spin between regions and launch in ~12 us), so it pays where a call holds
+milliseconds of work: the narrow phase goes parallel only above ``contacts.SERIAL_WORK`` (the
+page's pour at 2 threads: 2.1-2.2 ms/step with the shares, 2.1-2.6 serial), a quadrature pass
+integrates cells of about 0.1-1 ms each.
 """
 from __future__ import annotations
 

@@ -50,10 +50,9 @@ def _integrate_share(first, step, ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x
     S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
     seeds = np.empty((MAX_BREAKS, SEEDS))
     nseed = np.empty(MAX_BREAKS, dtype=np.int64)
-    a5 = np.empty(10)
+    a5 = np.empty(10)                            # zeroed by integrate_cell
     for c in range(first, cells.shape[0], step):
         nseed[:] = 0
-        a5[:] = 0.0
         clo = cells[c, 0:3].copy()
         chi = cells[c, 3:6].copy()
         est = integrate_cell(P, clo, chi, lip, G, cen, st, S, seeds, nseed, a5, mom[c])
