@@ -25,13 +25,13 @@ def _fail_at(first, step, bad):
             raise ValueError("item out of range")
 
 
-def _run(threads, n):
+def _run(threads, n, dynamic=False):
     old = numba.get_num_threads()
     numba.set_num_threads(threads)
     try:
         out = np.zeros(n)
         seen = np.zeros(n, np.int64)
-        run_shares(_mark, n, out, seen)
+        run_shares(_mark, n, out, seen, dynamic=dynamic)
         return out, seen
     finally:
         numba.set_num_threads(old)
@@ -84,5 +84,60 @@ def test_the_shares_overlap_in_time():
     numba.set_num_threads(2)
     try:
         run_shares(kernel, 2)
+    finally:
+        numba.set_num_threads(old)
+
+
+def test_dynamic_deal_does_every_item_once_with_the_same_bits():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
+    one, seen1 = _run(1, 1001)
+    two, seen2 = _run(2, 1001, dynamic=True)
+    assert np.all(seen2 >= 1)
+    # item k is called as kernel(k, n): the share id it records is k + 1, once
+    assert np.array_equal(seen2, np.arange(1, 1002))
+    assert one.tobytes() == two.tobytes()
+
+
+def test_dynamic_deal_spreads_uneven_items_over_both_threads():
+    # a fixed deal of 2 shares gives every costly (even) item to share 0; dealt one at a
+    # time, the pool thread takes costly items too while the calling thread is busy. The
+    # kernel is a Python function that sleeps (releasing the GIL) on the even items and
+    # records which thread did each
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
+    import time
+    who = {}
+
+    def kernel(first, step, n):
+        for i in range(first, n, step):
+            if i % 2 == 0:
+                time.sleep(0.02)
+            who.setdefault(i, []).append(threading.get_ident())
+
+    old = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        run_shares(kernel, 12, 12)
+        fixed = {i: t[0] for i, t in who.items()}
+        who.clear()
+        run_shares(kernel, 12, 12, dynamic=True)
+    finally:
+        numba.set_num_threads(old)
+    assert len({fixed[i] for i in range(0, 12, 2)}) == 1       # the fixed deal: one thread
+    assert sorted(who) == list(range(12)) and all(len(t) == 1 for t in who.values())
+    assert len({who[i][0] for i in range(0, 12, 2)}) == 2      # dealt: both threads
+
+
+def test_an_error_in_a_dynamic_share_reaches_the_caller():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
+    old = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        for bad in (0, 3, 9):
+            with pytest.raises(ValueError, match="item out of range"):
+                run_shares(_fail_at, 10, bad, dynamic=True)
+        run_shares(_fail_at, 10, 99, dynamic=True)
     finally:
         numba.set_num_threads(old)

@@ -19,6 +19,7 @@ integrates cells of about 0.1-1 ms each.
 """
 from __future__ import annotations
 
+import itertools
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -59,20 +60,44 @@ def _executor(workers):
         return _pool
 
 
-def run_shares(kernel, n, *args):
+def run_shares(kernel, n, *args, dynamic=False):
     """Call ``kernel(first, step, *args)`` for ``first`` = 0 .. step - 1 with ``step`` =
     :func:`share_count` (``n``), share 0 in the calling thread and the others at once on
     pool threads; return when all are done. ``kernel`` must release the GIL
     (``@njit(nogil=True)``) for the shares to overlap, and each item must write only its own
-    outputs. An exception in any share is raised here (the first share's first)."""
+    outputs. An exception in any share is raised here (the first share's first).
+
+    ``dynamic=True`` deals the items one at a time instead: each thread calls
+    ``kernel(k, n, *args)`` (item k alone) for the next item k not yet taken, until none is
+    left. For items of very uneven cost (a quadrature's cells: a few take hundreds of times
+    the median), where a fixed deal can leave one thread with most of the work; each call
+    costs a dispatch (tens of microseconds), so the items must be far costlier than that.
+    Which thread does an item never changes what it writes."""
     step = share_count(n)
     if step == 1:
         kernel(0, 1, *args)
         return
     pool = _executor(step - 1)
-    others = [pool.submit(kernel, first, step, *args) for first in range(1, step)]
+    if dynamic:
+        taken = itertools.count()
+        failed = []
+
+        def share(_first, _step, *args):
+            # the next free item, until none is left or a share has failed
+            for k in taken:
+                if k >= n or failed:
+                    return
+                try:
+                    kernel(k, n, *args)
+                except BaseException:
+                    failed.append(True)
+                    raise
+        body = share
+    else:
+        body = kernel
+    others = [pool.submit(body, first, step, *args) for first in range(1, step)]
     try:
-        kernel(0, step, *args)
+        body(0, step, *args)
     finally:
         # every share finishes before the outputs are read (or an error is raised)
         errors = [f.exception() for f in others]

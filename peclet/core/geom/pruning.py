@@ -269,7 +269,7 @@ def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims
                 h = _hash_rows(rows, n)
                 slot = _seen_slot(seen_key, seen_val, h)
                 first = seen_val[slot]                  # -2: not seen
-                if first == -1 and _same_rows(out, 0, nfull, rows, n):
+                if first == -1 and _same_rows(out, np.int64(0), nfull, rows, n):
                     block_range[b, 0] = 0
                     block_range[b, 1] = nfull
                 elif first >= 0 and _same_rows(out, block_range[first, 0],

@@ -213,7 +213,9 @@ def principal_frame(builder, root, lo, hi, **kw):
     ``kw`` goes to :func:`body_properties`.
     """
     props = body_properties(builder, root, lo, hi, **kw)
-    At = props.axes.T
+    # a C-ordered copy: matrix_to_quat is compiled once, for C arrays (a transposed view is
+    # F-ordered, and a second compilation cost a cold first run about a second)
+    At = np.ascontiguousarray(props.axes.T)
     new_root = builder.add_reframed(root, translation=-(At @ props.com),
                                     rotation=matrix_to_quat(At))
     return new_root, props

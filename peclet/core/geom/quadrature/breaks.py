@@ -96,7 +96,7 @@ def _scan(C, u, steps, nex, U=None):
     seq = np.uint64(1469598103934665603)
     brk[0] = c0
     flag[0] = 0.0
-    m = 1
+    m = I1
     # the structure at x (hash, count: v-level roots, u-level midpoints in S[R_MLO], inside
     # length: v-level only) and at the next probe y (u-level midpoints in S[R_MY])
     hx = _NO_HASH
@@ -306,15 +306,15 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
     nx0 = merge(S, R_MLO, nlo, R_MLO, I0, R_MX)
     for attempt in range(U.reprobes + 1):
         # each end's previous midpoints (count -1: none yet) to extrapolate
-        nlp = -1
-        nhp = -1
+        nlp = -I1
+        nhp = -I1
         ulp = lo_
         uhp = hi_
         for _ in range(steps):
             mid = 0.5 * (lo_ + hi_)
             nxp = I0
             if U.reprobes > 0:
-                nxp = extrapolate(S, R_MLO, nlo, lo_, R_MLP, nlp, ulp, mid, v0, v1, 0)
+                nxp = extrapolate(S, R_MLO, nlo, lo_, R_MLP, nlp, ulp, mid, v0, v1, I0)
                 nxp = extrapolate(S, R_MHI, nhi, hi_, R_MHP, nhp, uhp, mid, v0, v1, nxp)
             sort_prefix(S[R_XP], nxp)
             nt = merge(S, R_MLO, nlo, R_MHI, nhi, R_XT)

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from .. import kernels as K
-from .constants import DIP_BUDGET, DIP_STEPS, LINE_EPS, LINE_STACK
+from .constants import DIP_BUDGET, DIP_STEPS, I0, LINE_EPS, LINE_STACK
 
 
 @njit(cache=True)
@@ -170,7 +170,7 @@ def line_roots(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
     t = a
     f, df = _phi_d(P, ak, u, v, t, iu, iv, st)
     inside0 = f < 0.0
-    nr = 0
+    nr = I0                  # an int64, not a literal: _add_root is compiled once
     extra = 0
     dips = 0
     stk = np.empty((LINE_STACK, 6))
