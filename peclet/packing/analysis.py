@@ -30,8 +30,9 @@ from peclet.core.geom.program import concatenate
 
 from .freeze import Pack
 
-__all__ = ["PackGeometry", "bulk_windows", "cover_fractions", "probe_overlap", "orientation",
-           "floor_and_box", "certificate_check", "wall_sweep", "sweep_fractions", "sweep_voidage", "fraction_se"]
+__all__ = ["PackGeometry", "compile_kernels", "bulk_windows", "cover_fractions", "probe_overlap",
+           "orientation", "floor_and_box", "certificate_check", "wall_sweep", "sweep_fractions",
+           "sweep_voidage", "fraction_se"]
 
 
 @njit(cache=True, parallel=True)
@@ -153,6 +154,21 @@ class PackGeometry:
                           np.ascontiguousarray(self.img_pos[b_img]),
                           np.ascontiguousarray(self.img_rot[b_img]), out)
         return out
+
+
+def compile_kernels(pack: Pack):
+    """Compile (or load from Numba's cache) the kernels of :class:`PackGeometry`'s queries
+    for packs of ``pack``'s kind (its element and envelope), by querying a one-element copy
+    of it: a cold first run does this while the DEM's kernels compile in other processes,
+    instead of after the pour with a core idle. The kernels' signatures depend only on the
+    kinds of the arrays, which a copy with one element shares."""
+    one = Pack(pack.positions[:1], pack.quaternions[:1], pack.box, pack.ring_volume,
+               pack.node_ints, pack.node_reals, pack.home_root, pack.bounding_radius, pack.shell,
+               pack.mass, pack.inv_inertia, pack.envelope_root, pack.envelope_volume,
+               pack.axis_home)
+    geo = PackGeometry(one)
+    geo.cover(one.positions)
+    geo.probe_min([0], [0])
 
 
 def bulk_windows(pack: Pack, floor_cut=(1.0, 0.8, 1.2), top_cut=(0.8, 0.6, 1.0)):

@@ -1,0 +1,93 @@
+"""Step 6's wall-thickness sweep in a child process at a low priority, beside the pour.
+
+The sweep (:func:`peclet.packing.analysis.sweep_fractions`: six quadratures of the ring at
+other wall thicknesses, about 10 s of two cores) needs no pack, and the pour, the analysis and
+the figures that follow the element's measurement leave a core partly idle (the pour's step is
+not all parallel; the analysis and figures are mostly one thread). :class:`SweepProcess` runs
+the sweep in a child in Linux's idle scheduling class (``SCHED_IDLE``; elsewhere at ``nice``
++19), so that it takes only what nothing else wants and yields at once to everything else:
+the pour's ms/step is a reported figure, and on a cold first run the DEM kernels compiling in
+other children gate the pour. (At ``nice`` +10 the child still slowed the pour's step by a
+quarter: a pour thread woken for a parallel region waited for it.) On a cold Numba cache the child is started only
+once the quadrature's kernels are compiled (by the element's measurement), so that it loads
+them instead of compiling them a second time.
+
+The child computes exactly what the run would (the same function, the same arguments, the
+same bits at any thread count); its rows come back as JSON, whose floats round-trip exactly.
+If it fails, :meth:`SweepProcess.rows` computes the sweep in this process instead, which
+raises the error, if any, where the user sees it.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+__all__ = ["SweepProcess", "NICE"]
+
+#: The child's niceness increment where the idle scheduling class is not available (see
+#: :class:`SweepProcess`).
+NICE = 19
+
+_CHILD = """
+import json, os, sys
+try:
+    os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+except (AttributeError, OSError):
+    try:
+        os.nice({nice})
+    except (AttributeError, OSError):
+        pass
+import numba
+from peclet.packing.analysis import sweep_fractions
+args = json.loads(sys.argv[1])
+if args["threads"] is not None:
+    numba.set_num_threads(args["threads"])
+rows = sweep_fractions(args["thicknesses"], n=args["n"], tol=args["tol"])
+sys.stdout.write(json.dumps(rows))
+"""
+
+
+class SweepProcess:
+    """``sweep_fractions(thicknesses, n=n, tol=tol)`` computed in a low-priority child.
+
+    thicknesses: wall thicknesses (D); n, tol: the quadrature's resolution and tolerance;
+    threads: the child's Numba thread count (None: Numba's default). Nothing is started for an
+    empty list. :meth:`rows` waits for the child and returns its rows."""
+
+    def __init__(self, thicknesses, n, tol, threads=None):
+        self.args = dict(thicknesses=[float(t) for t in thicknesses], n=int(n),
+                         tol=float(tol), threads=None if threads is None else int(threads))
+        self.child = None
+        if self.args["thicknesses"]:
+            self.child = subprocess.Popen(
+                [sys.executable, "-c", _CHILD.format(nice=NICE), json.dumps(self.args)],
+                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self._rows = None
+
+    def rows(self):
+        """The sweep's rows (a list of dicts, as :func:`sweep_fractions` returns them)."""
+        if self._rows is None:
+            self._rows = self._collect()
+        return self._rows
+
+    def stop(self):
+        """Kill the child if it is still running (a run that fails before Step 6)."""
+        if self.child is not None and self.child.poll() is None:
+            self.child.kill()
+            self.child.communicate()
+
+    def _collect(self):
+        from .analysis import sweep_fractions
+
+        a = self.args
+        if self.child is None:
+            return []
+        out, _ = self.child.communicate()
+        if self.child.returncode == 0:
+            try:
+                return json.loads(out)
+            except ValueError:
+                pass
+        # the child failed: the sweep here, where an error reaches the user
+        return sweep_fractions(a["thicknesses"], n=a["n"], tol=a["tol"])

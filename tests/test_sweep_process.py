@@ -1,0 +1,54 @@
+"""peclet.packing.sweep_process: the wall-thickness sweep in a low-priority child gives the
+rows of the same sweep in this process, bit for bit; a child that fails leaves the error to the
+in-process sweep; the child runs in the idle scheduling class; a run that stops kills it."""
+import os
+import time
+
+import pytest
+
+from peclet.packing import analysis
+from peclet.packing.sweep_process import SweepProcess
+
+THICK = [0.06, 0.12]
+
+
+def test_rows_from_the_child_equal_the_sweep_here_bit_for_bit():
+    child = SweepProcess(THICK, n=32, tol=1e-4, threads=1)
+    here = analysis.sweep_fractions(THICK, n=32, tol=1e-4)
+    rows = child.rows()
+    assert child.child.returncode == 0
+    assert [sorted(r) for r in rows] == [sorted(r) for r in here]
+    for a, b in zip(rows, here):
+        for k in a:
+            assert float(a[k]).hex() == float(b[k]).hex(), k
+
+
+def test_an_empty_sweep_starts_no_child():
+    s = SweepProcess([], n=8, tol=1e-4)
+    assert s.child is None and s.rows() == []
+
+
+def test_a_failing_child_leaves_the_error_to_the_sweep_here():
+    # n = 1 is refused by the quadrature (n in [2, 4096]): the child exits with an error and
+    # rows() runs the sweep here, which raises it
+    s = SweepProcess([0.06], n=1, tol=1e-4)
+    with pytest.raises(Exception, match="n"):
+        s.rows()
+    assert s.child.returncode != 0
+
+
+@pytest.mark.skipif(not hasattr(os, "SCHED_IDLE"), reason="Linux's idle scheduling class")
+def test_the_child_runs_in_the_idle_class_and_stop_kills_it():
+    s = SweepProcess([0.16] * 20, n=32, tol=1e-4, threads=1)
+    try:
+        deadline = time.monotonic() + 60.0
+        policy = None
+        while time.monotonic() < deadline and s.child.poll() is None:
+            policy = os.sched_getscheduler(s.child.pid)
+            if policy == os.SCHED_IDLE:
+                break
+            time.sleep(0.05)
+        assert policy == os.SCHED_IDLE
+    finally:
+        s.stop()
+    assert s.child.poll() is not None
