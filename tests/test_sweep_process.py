@@ -13,7 +13,7 @@ THICK = [0.06, 0.12]
 
 
 def test_rows_from_the_child_equal_the_sweep_here_bit_for_bit():
-    child = SweepProcess(THICK, n=32, tol=1e-4, threads=1)
+    child = SweepProcess(THICK, n=32, tol=1e-4)
     here = analysis.sweep_fractions(THICK, n=32, tol=1e-4)
     rows = child.rows()
     assert child.child.returncode == 0
@@ -52,3 +52,15 @@ def test_the_child_runs_in_the_idle_class_and_stop_kills_it():
     finally:
         s.stop()
     assert s.child.poll() is not None
+
+
+def test_no_child_started_means_the_sweep_here(monkeypatch, tmp_path):
+    # a machine where the child cannot be started (its interpreter is not there: Popen raises
+    # FileNotFoundError): the rows are still the sweep's, computed in this process, never an
+    # empty list
+    import sys
+
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-such-python"))
+    s = SweepProcess([0.12], n=32, tol=1e-4)
+    assert s.child is None
+    assert s.rows() == analysis.sweep_fractions([0.12], n=32, tol=1e-4)

@@ -53,16 +53,20 @@ class SweepProcess:
 
     thicknesses: wall thicknesses (D); n, tol: the quadrature's resolution and tolerance;
     threads: the child's Numba thread count (None: Numba's default). Nothing is started for an
-    empty list. :meth:`rows` waits for the child and returns its rows."""
+    empty list. :meth:`rows` waits for the child and returns its rows (if no child could be
+    started, or it failed, it computes them here)."""
 
     def __init__(self, thicknesses, n, tol, threads=None):
         self.args = dict(thicknesses=[float(t) for t in thicknesses], n=int(n),
                          tol=float(tol), threads=None if threads is None else int(threads))
         self.child = None
         if self.args["thicknesses"]:
-            self.child = subprocess.Popen(
-                [sys.executable, "-c", _CHILD.format(nice=NICE), json.dumps(self.args)],
-                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            try:
+                self.child = subprocess.Popen(
+                    [sys.executable, "-c", _CHILD.format(nice=NICE), json.dumps(self.args)],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            except OSError:
+                pass                     # no child: rows() computes the sweep here
         self._rows = None
 
     def rows(self):
@@ -81,13 +85,14 @@ class SweepProcess:
         from .analysis import sweep_fractions
 
         a = self.args
-        if self.child is None:
+        if not a["thicknesses"]:
             return []
-        out, _ = self.child.communicate()
-        if self.child.returncode == 0:
-            try:
-                return json.loads(out)
-            except ValueError:
-                pass
-        # the child failed: the sweep here, where an error reaches the user
+        if self.child is not None:
+            out, _ = self.child.communicate()
+            if self.child.returncode == 0:
+                try:
+                    return json.loads(out)
+                except ValueError:
+                    pass
+        # no child, or it failed: the sweep here, where an error reaches the user
         return sweep_fractions(a["thicknesses"], n=a["n"], tol=a["tol"])
