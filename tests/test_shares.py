@@ -1,5 +1,6 @@
 """peclet.core.shares: a nogil kernel's shares on Python threads, every item done once, the
 same outputs at any thread count, errors raised in the caller."""
+import contextlib
 import threading
 
 import numba
@@ -8,6 +9,20 @@ import pytest
 from numba import njit
 
 from peclet.core.shares import run_shares, share_count
+
+needs_two = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2,
+                               reason="needs NUMBA_NUM_THREADS >= 2")
+
+
+@contextlib.contextmanager
+def threads(n):
+    # Numba's thread count (which sets the number of shares) at n, restored afterwards
+    old = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
 
 
 @njit(nogil=True)
@@ -25,21 +40,16 @@ def _fail_at(first, step, bad):
             raise ValueError("item out of range")
 
 
-def _run(threads, n, dynamic=False):
-    old = numba.get_num_threads()
-    numba.set_num_threads(threads)
-    try:
+def _run(nthreads, n, dynamic=False):
+    with threads(nthreads):
         out = np.zeros(n)
         seen = np.zeros(n, np.int64)
         run_shares(_mark, n, out, seen, dynamic=dynamic)
         return out, seen
-    finally:
-        numba.set_num_threads(old)
 
 
+@needs_two
 def test_every_item_once_and_the_same_bits_at_one_and_two_threads():
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
     one, seen1 = _run(1, 1001)
     two, seen2 = _run(2, 1001)
     assert np.all(seen1 == 1)                   # one share did everything
@@ -54,43 +64,32 @@ def test_shares_never_exceed_the_items_or_the_threads():
     assert share_count(10 ** 6) == numba.get_num_threads()
 
 
+@needs_two
 def test_an_error_in_a_pool_share_reaches_the_caller():
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
-    old = numba.get_num_threads()
-    numba.set_num_threads(2)
-    try:
+    with threads(2):
         with pytest.raises(ValueError, match="item out of range"):
             run_shares(_fail_at, 10, 3)             # item 3: share 1, on a pool thread
         with pytest.raises(ValueError, match="item out of range"):
             run_shares(_fail_at, 10, 4)             # item 4: share 0, the calling thread
         run_shares(_fail_at, 10, 99)                # and the pool still works afterwards
-    finally:
-        numba.set_num_threads(old)
 
 
+@needs_two
 def test_the_shares_overlap_in_time():
     # the pool's share runs while the calling thread's is still running: a share that waits
     # for the other to start would hang on one thread and finish on two
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
     started = [threading.Event(), threading.Event()]
 
     def kernel(first, step):
         started[first].set()
         assert started[1 - first].wait(timeout=30), "the other share never ran alongside"
 
-    old = numba.get_num_threads()
-    numba.set_num_threads(2)
-    try:
+    with threads(2):
         run_shares(kernel, 2)
-    finally:
-        numba.set_num_threads(old)
 
 
+@needs_two
 def test_dynamic_deal_does_every_item_once_with_the_same_bits():
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
     one, seen1 = _run(1, 1001)
     two, seen2 = _run(2, 1001, dynamic=True)
     assert np.all(seen2 >= 1)
@@ -99,13 +98,12 @@ def test_dynamic_deal_does_every_item_once_with_the_same_bits():
     assert one.tobytes() == two.tobytes()
 
 
+@needs_two
 def test_dynamic_deal_spreads_uneven_items_over_both_threads():
     # a fixed deal of 2 shares gives every costly (even) item to share 0; dealt one at a
     # time, the pool thread takes costly items too while the calling thread is busy. The
     # kernel is a Python function that sleeps (releasing the GIL) on the even items and
     # records which thread did each
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
     import time
     who = {}
 
@@ -115,29 +113,20 @@ def test_dynamic_deal_spreads_uneven_items_over_both_threads():
                 time.sleep(0.02)
             who.setdefault(i, []).append(threading.get_ident())
 
-    old = numba.get_num_threads()
-    numba.set_num_threads(2)
-    try:
+    with threads(2):
         run_shares(kernel, 12, 12)
         fixed = {i: t[0] for i, t in who.items()}
         who.clear()
         run_shares(kernel, 12, 12, dynamic=True)
-    finally:
-        numba.set_num_threads(old)
     assert len({fixed[i] for i in range(0, 12, 2)}) == 1       # the fixed deal: one thread
     assert sorted(who) == list(range(12)) and all(len(t) == 1 for t in who.values())
     assert len({who[i][0] for i in range(0, 12, 2)}) == 2      # dealt: both threads
 
 
+@needs_two
 def test_an_error_in_a_dynamic_share_reaches_the_caller():
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs NUMBA_NUM_THREADS >= 2")
-    old = numba.get_num_threads()
-    numba.set_num_threads(2)
-    try:
+    with threads(2):
         for bad in (0, 3, 9):
             with pytest.raises(ValueError, match="item out of range"):
                 run_shares(_fail_at, 10, bad, dynamic=True)
         run_shares(_fail_at, 10, 99, dynamic=True)
-    finally:
-        numba.set_num_threads(old)
