@@ -70,7 +70,7 @@ def composed_particle(b, root, half, target=1200, h_mass=0.012, h_probe=0.02):
         R[:, 2] *= -1
     # home frame: p_author = R p_home + com, so the reframed node is f(R^T... ) with
     # rotation R^T and translation -R^T com
-    home = b.add_reframed(root, translation=-R.T @ com, rotation=matrix_to_quat(R.T))
+    home = b.add_reframed(root, translation=-R.T @ com, rotation=matrix_to_quat(np.ascontiguousarray(R.T)))
     shell = _surface_probes(b, root, half, target, h_probe)
     shell_home = (shell - com) @ R
     ni, nr, _, _ = b.encode()

@@ -42,7 +42,7 @@ def standin_particle(n_probes=500, seed=0):
     w, ax = np.linalg.eigh(np.trace(S) * np.eye(3) - S)
     if np.linalg.det(ax) < 0:
         ax[:, 2] *= -1
-    home = b.add_reframed(r, translation=-(ax.T @ com), rotation=matrix_to_quat(ax.T))
+    home = b.add_reframed(r, translation=-(ax.T @ com), rotation=matrix_to_quat(np.ascontiguousarray(ax.T)))
     v, _, _ = surface_mesh(b, home, [-0.66] * 3, [0.66] * 3, 80)
     shell = v[g.choice(len(v), n_probes, replace=False)]
     for _ in range(4):

@@ -309,7 +309,7 @@ def _initial_impulses(old_keys, old_lam, keys, t1, t2, mu):
     0.0 and adds left to right), so that the impulses keep the bits of the array form."""
     nc = keys.shape[0]
     lam = np.zeros((nc, 3))
-    _initial_range(0, nc, old_keys, old_lam, keys, t1, t2, mu, lam)
+    _initial_range(np.int64(0), nc, old_keys, old_lam, keys, t1, t2, mu, lam)
     return lam
 
 

@@ -419,7 +419,7 @@ def _forces_serial(a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, r
 def _forces_parallel(a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, rstar, mstar,
                      gamma, mu, xi, dt, force, fn_out):
     for i in prange(a.shape[0]):
-        _one_contact(i, a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, rstar,
+        _one_contact(np.int64(i), a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, rstar,
                      mstar, gamma, mu, xi, dt, force, fn_out)
 
 
@@ -571,7 +571,7 @@ def _rolling_serial(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, 
 def _rolling_parallel(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
                       inv_mass, inv_rot, dt, mr, torque):
     for i in prange(a.shape[0]):
-        _one_rolling(i, a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
+        _one_rolling(np.int64(i), a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
                      inv_mass, inv_rot, dt, mr, torque)
 
 
@@ -632,7 +632,7 @@ def _kick_serial(x, v, w, f_body, t_body, inv_mass, wii, g, dt):
 @njit(cache=True, parallel=True)
 def _kick_parallel(x, v, w, f_body, t_body, inv_mass, wii, g, dt):
     for i in prange(x.shape[0]):
-        _kick_one(i, x, v, w, f_body, t_body, inv_mass, wii, g, dt)
+        _kick_one(np.int64(i), x, v, w, f_body, t_body, inv_mass, wii, g, dt)
 
 
 def kick_drift(x, v, w, f_body, t_body, inv_mass, wii, g, dt):

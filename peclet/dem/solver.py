@@ -67,6 +67,11 @@ COLOR_CHUNK = 256
 
 # bits of colour set per int64 word in color_contacts (the sign bit left alone)
 _COLOR_BITS = 62
+# the first contact (or body) of a serial sweep's range as an int64, not a literal 0: the
+# coloured sweeps call the same range kernels with int64 starts, and a literal would compile
+# each of them a second time (about 10 s of a cold test run's compilation, docs/architecture.md
+# §7)
+_FIRST = np.int64(0)
 
 
 class Constraints(NamedTuple):
@@ -283,7 +288,7 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
     vmin = np.empty(n)
     tt1 = np.empty(n)
     tt2 = np.empty(n)
-    _vel_setup(0, n, ca, cb, nrm, t1, t2, ra, rb, gap, e_n, beta, vw, v, w, inv_mass, invI,
+    _vel_setup(_FIRST, n, ca, cb, nrm, t1, t2, ra, rb, gap, e_n, beta, vw, v, w, inv_mass, invI,
                dt, rest_threshold, slop, kn, kt1, kt2, vmin, tt1, tt2)
     # warm start
     P = np.empty(3)
@@ -293,10 +298,10 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
                 P[e] = lam[i, 0] * nrm[i, e] + lam[i, 1] * t1[i, e] + lam[i, 2] * t2[i, e]
             _apply(ca[i], cb[i], ra[i], rb[i], P, v, w, inv_mass, invI)
     for it in range(iterations):
-        _vel_sweep(0, n, it % 2 == 1, ca, cb, nrm, t1, t2, ra, rb, mu, vw, kn, kt1, kt2, vmin,
+        _vel_sweep(_FIRST, n, it % 2 == 1, ca, cb, nrm, t1, t2, ra, rb, mu, vw, kn, kt1, kt2, vmin,
                    tt1, tt2, lam, v, w, inv_mass, invI)
     vn_out = np.empty(n)
-    _vn_after(0, n, ca, cb, nrm, ra, rb, vw, v, w, vn_out)
+    _vn_after(_FIRST, n, ca, cb, nrm, ra, rb, vw, v, w, vn_out)
     return vn_out
 
 
@@ -448,7 +453,7 @@ def _raise_bad_turn(j, dth, quats):
 @njit(cache=True)
 def _pos_setup(ca, cb, nrm, ra, rb, gap_end, inv_mass, invI, slop, kn):
     # kn for every contact; whether any predicted gap is below -slop
-    return _pos_setup_range(0, ca.shape[0], ca, cb, nrm, ra, rb, gap_end, inv_mass, invI, slop,
+    return _pos_setup_range(_FIRST, ca.shape[0], ca, cb, nrm, ra, rb, gap_end, inv_mass, invI, slop,
                             kn)
 
 
@@ -478,9 +483,9 @@ def project_positions(con, gap_end, inv_mass, invI, slop, iterations, pos, quats
     dth = np.zeros((nb, 3))
     acc = np.zeros(n)
     for it in range(iterations):
-        _pos_sweep(0, n, it % 2 == 1, ca, cb, nrm, ra, rb, gap_end, slop, kn, acc, dx, dth,
+        _pos_sweep(_FIRST, n, it % 2 == 1, ca, cb, nrm, ra, rb, gap_end, slop, kn, acc, dx, dth,
                    inv_mass, invI)
-    bad = _move_bodies(0, nb, dx, dth, pos, quats)
+    bad = _move_bodies(_FIRST, nb, dx, dth, pos, quats)
     if bad >= 0:
         _raise_bad_turn(bad, dth, quats)
 
@@ -556,7 +561,7 @@ def color_contacts(ca, cb, n_bodies):
     full = (np.int64(1) << _COLOR_BITS) - 1
     used = np.zeros((n_bodies, words), np.int64)
     color = np.empty(n, np.int64)
-    ncol = 0
+    ncol = np.int64(0)
     for i in range(n):
         a = ca[i]
         b = cb[i]
@@ -643,7 +648,7 @@ def world_inv_inertias(quats, inv_inertia):
     """R diag(inv_inertia) R^T for every body: (N, 3, 3)."""
     n = quats.shape[0]
     out = np.empty((n, 3, 3))
-    _world_inv_range(0, n, quats, inv_inertia, out)
+    _world_inv_range(_FIRST, n, quats, inv_inertia, out)
     return out
 
 
