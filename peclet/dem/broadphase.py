@@ -93,6 +93,12 @@ def image_shifts(pa, pb, pos, box, periodic):
     return shift
 
 
+# _scan_body's ``write`` flag as a numpy bool, not a literal: a literal True / False compiled
+# the scan twice (about a second of a cold first run)
+_COUNT = np.bool_(False)
+_STORE = np.bool_(True)
+
+
 @njit(cache=True)
 def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
                out_j, out_shift, write, base, ax, ay, az, d, cpos, crad):
@@ -158,7 +164,7 @@ def _count_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, ite
     zero = np.int64(0)
     for i in range(k, pos.shape[0], nw):
         counts[i] = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
-                               coords, dummy_j, dummy_s, False, zero, ax, ay, az, d, cpos,
+                               coords, dummy_j, dummy_s, _COUNT, zero, ax, ay, az, d, cpos,
                                crad)
 
 
@@ -173,7 +179,7 @@ def _fill_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, item
     d = np.empty(3)
     for i in range(k, pos.shape[0], nw):
         _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                   pb, shift, True, offs[i], ax, ay, az, d, cpos, crad)
+                   pb, shift, _STORE, offs[i], ax, ay, az, d, cpos, crad)
         _sort_row(pb, shift, offs[i], offs[i + 1])
 
 
@@ -244,7 +250,7 @@ def _scan_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, item
     used = np.int64(0)
     for i in range(k, pos.shape[0], nw):
         cnt = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
-                         coords, buf_j, buf_s, True, used, ax, ay, az, d, cpos, crad)
+                         coords, buf_j, buf_s, _STORE, used, ax, ay, az, d, cpos, crad)
         if used + cnt > cap:
             return np.int64(-1)
         _sort_row(buf_j, buf_s, used, used + cnt)
