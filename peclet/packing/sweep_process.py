@@ -8,7 +8,11 @@ the sweep in a child in Linux's idle scheduling class (``SCHED_IDLE``; elsewhere
 +19), so that it takes only what nothing else wants and yields at once to everything else:
 the pour's ms/step is a reported figure, and on a cold first run the DEM kernels compiling in
 other children gate the pour. (At ``nice`` +10 the child still slowed the pour's step by a
-quarter: a pour thread woken for a parallel region waited for it.) On a cold Numba cache the child is started only
+quarter: a pour thread woken for a parallel region waited for it. In the idle class, the page's
+pour at 2 threads with a sweep child beside it against alone, three interleaved pairs: 1.84,
+2.26, 2.18 against 1.87, 1.80, 2.14 ms/step, a difference inside this machine's noise; stopping
+the child during the pour cost the warm run 5 s and is not done. ``bench_vs_bullet`` times the
+pour alone.) On a cold Numba cache the child is started only
 once the quadrature's kernels are compiled (by the element's measurement), so that it loads
 them instead of compiling them a second time.
 
