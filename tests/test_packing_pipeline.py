@@ -15,7 +15,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from peclet.packing.freeze import load_pack
+from peclet.packing.freeze import Pack, load_pack
 
 FIGS = ("ring", "kinetic_energy", "pack", "orientation", "voidage_sweep")
 
@@ -42,7 +42,8 @@ def standin_particle(n_probes=500, seed=0):
     w, ax = np.linalg.eigh(np.trace(S) * np.eye(3) - S)
     if np.linalg.det(ax) < 0:
         ax[:, 2] *= -1
-    home = b.add_reframed(r, translation=-(ax.T @ com), rotation=matrix_to_quat(np.ascontiguousarray(ax.T)))
+    home = b.add_reframed(r, translation=-(ax.T @ com),
+                          rotation=matrix_to_quat(np.ascontiguousarray(ax.T)))
     v, _, _ = surface_mesh(b, home, [-0.66] * 3, [0.66] * 3, 80)
     shell = v[g.choice(len(v), n_probes, replace=False)]
     for _ in range(4):
@@ -127,6 +128,26 @@ def test_frozen_pack_rebuilds_the_simulation(reduced_run):
     assert np.array_equal(np.asarray(sim.get_positions(), float), pk.positions)
     sim.step()                                           # a consumer can carry on from it
     assert np.all(np.isfinite(np.asarray(sim.get_positions())))
+
+
+def test_analysis_kernels_compiled_on_one_ring_serve_the_whole_pack(reduced_run):
+    # what a cold first run compiles beside the DEM children (analysis.compile_kernels, on a
+    # one-ring pack) must be what the analysis of the poured pack calls: no new signature
+    from peclet.packing import analysis
+
+    out, _, _ = reduced_run
+    pk = load_pack(out / "pall_ring_pack.npz")
+    one = Pack(pk.positions[:1], pk.quaternions[:1], pk.box, pk.ring_volume, pk.node_ints,
+               pk.node_reals, pk.home_root, pk.bounding_radius, pk.shell, pk.mass,
+               pk.inv_inertia, pk.envelope_root, pk.envelope_volume, pk.axis_home)
+    analysis.compile_kernels(one)
+    kernels = (analysis._cover_kernel, analysis._probe_min_kernel)
+    before = [list(k.signatures) for k in kernels]
+    assert all(len(s) >= 1 for s in before)
+    geo = analysis.PackGeometry(pk)
+    analysis.cover_fractions(geo, analysis.bulk_windows(pk)[0][0], 2000, seed=0)
+    analysis.probe_overlap(geo)
+    assert [list(k.signatures) for k in kernels] == before
 
 
 def test_wall_sweep_against_the_tube_closed_form():

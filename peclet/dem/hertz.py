@@ -419,8 +419,8 @@ def _forces_serial(a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, r
 def _forces_parallel(a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, rstar, mstar,
                      gamma, mu, xi, dt, force, fn_out):
     for i in prange(a.shape[0]):
-        _one_contact(np.int64(i), a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, rstar,
-                     mstar, gamma, mu, xi, dt, force, fn_out)
+        _one_contact(np.int64(i), a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar,
+                     rstar, mstar, gamma, mu, xi, dt, force, fn_out)
 
 
 def contact_forces(a, b, normal, gap, ra, rb, vel, omega, vwall, estar, gstar, rstar, mstar,
@@ -571,8 +571,8 @@ def _rolling_serial(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, 
 def _rolling_parallel(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
                       inv_mass, inv_rot, dt, mr, torque):
     for i in prange(a.shape[0]):
-        _one_rolling(np.int64(i), a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,
-                     inv_mass, inv_rot, dt, mr, torque)
+        _one_rolling(np.int64(i), a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll,
+                     mu_r, fn, inv_mass, inv_rot, dt, mr, torque)
 
 
 def rolling_torques(a, b, normal, gap, ra, rb, omega, wom, estar, rstar, rroll, mu_r, fn,

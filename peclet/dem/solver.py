@@ -288,8 +288,8 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
     vmin = np.empty(n)
     tt1 = np.empty(n)
     tt2 = np.empty(n)
-    _vel_setup(_FIRST, n, ca, cb, nrm, t1, t2, ra, rb, gap, e_n, beta, vw, v, w, inv_mass, invI,
-               dt, rest_threshold, slop, kn, kt1, kt2, vmin, tt1, tt2)
+    _vel_setup(_FIRST, n, ca, cb, nrm, t1, t2, ra, rb, gap, e_n, beta, vw, v, w, inv_mass,
+               invI, dt, rest_threshold, slop, kn, kt1, kt2, vmin, tt1, tt2)
     # warm start
     P = np.empty(3)
     for i in range(n):
@@ -298,8 +298,8 @@ def solve_velocities(con, lam, v, w, inv_mass, invI, dt, rest_threshold, slop, i
                 P[e] = lam[i, 0] * nrm[i, e] + lam[i, 1] * t1[i, e] + lam[i, 2] * t2[i, e]
             _apply(ca[i], cb[i], ra[i], rb[i], P, v, w, inv_mass, invI)
     for it in range(iterations):
-        _vel_sweep(_FIRST, n, it % 2 == 1, ca, cb, nrm, t1, t2, ra, rb, mu, vw, kn, kt1, kt2, vmin,
-                   tt1, tt2, lam, v, w, inv_mass, invI)
+        _vel_sweep(_FIRST, n, it % 2 == 1, ca, cb, nrm, t1, t2, ra, rb, mu, vw, kn, kt1, kt2,
+                   vmin, tt1, tt2, lam, v, w, inv_mass, invI)
     vn_out = np.empty(n)
     _vn_after(_FIRST, n, ca, cb, nrm, ra, rb, vw, v, w, vn_out)
     return vn_out
@@ -453,8 +453,8 @@ def _raise_bad_turn(j, dth, quats):
 @njit(cache=True)
 def _pos_setup(ca, cb, nrm, ra, rb, gap_end, inv_mass, invI, slop, kn):
     # kn for every contact; whether any predicted gap is below -slop
-    return _pos_setup_range(_FIRST, ca.shape[0], ca, cb, nrm, ra, rb, gap_end, inv_mass, invI, slop,
-                            kn)
+    return _pos_setup_range(_FIRST, ca.shape[0], ca, cb, nrm, ra, rb, gap_end, inv_mass, invI,
+                            slop, kn)
 
 
 @njit(cache=True)
@@ -483,8 +483,8 @@ def project_positions(con, gap_end, inv_mass, invI, slop, iterations, pos, quats
     dth = np.zeros((nb, 3))
     acc = np.zeros(n)
     for it in range(iterations):
-        _pos_sweep(_FIRST, n, it % 2 == 1, ca, cb, nrm, ra, rb, gap_end, slop, kn, acc, dx, dth,
-                   inv_mass, invI)
+        _pos_sweep(_FIRST, n, it % 2 == 1, ca, cb, nrm, ra, rb, gap_end, slop, kn, acc, dx,
+                   dth, inv_mass, invI)
     bad = _move_bodies(_FIRST, nb, dx, dth, pos, quats)
     if bad >= 0:
         _raise_bad_turn(bad, dth, quats)

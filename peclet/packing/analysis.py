@@ -158,16 +158,12 @@ class PackGeometry:
 
 def compile_kernels(pack: Pack):
     """Compile (or load from Numba's cache) the kernels of :class:`PackGeometry`'s queries
-    for packs of ``pack``'s kind (its element and envelope), by querying a one-element copy
-    of it: a cold first run does this while the DEM's kernels compile in other processes,
-    instead of after the pour with a core idle. The kernels' signatures depend only on the
-    kinds of the arrays, which a copy with one element shares."""
-    one = Pack(pack.positions[:1], pack.quaternions[:1], pack.box, pack.ring_volume,
-               pack.node_ints, pack.node_reals, pack.home_root, pack.bounding_radius, pack.shell,
-               pack.mass, pack.inv_inertia, pack.envelope_root, pack.envelope_volume,
-               pack.axis_home)
-    geo = PackGeometry(one)
-    geo.cover(one.positions)
+    for packs of ``pack``'s kind (its element and envelope) by querying ``pack`` once at one
+    point and one pair: a pack of one element does, since the kernels' signatures depend only
+    on the kinds of the arrays. A cold first run does this while the DEM's kernels compile in
+    other processes, instead of after the pour with a core idle."""
+    geo = PackGeometry(pack)
+    geo.cover(pack.positions[:1])
     geo.probe_min([0], [0])
 
 
