@@ -75,13 +75,12 @@ def pytest_sessionstart(session):
         return
     import time
 
-    from peclet.core.geom.quadrature.refine import _integrate_share
-    from peclet.core.jitcache import is_cached
+    from peclet.core.geom.quadrature.refine import kernels_cached
     from peclet.dem import warm
 
     t = time.perf_counter()
     children = warm.start_background()
-    quadrature = is_cached(_integrate_share) is False
+    quadrature = kernels_cached() is False
     if quadrature:
         from peclet.packing.api import _resolve_element, element_model
 
