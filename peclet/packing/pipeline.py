@@ -20,7 +20,7 @@ from peclet.core.geom.mesh import surface_mesh
 from peclet.core.geom.quadrature.refine import kernels_cached as quadrature_cached
 from peclet.core.geom.transforms import quat_to_matrix
 
-from . import analysis, coordination, elements, figures
+from . import analysis, coordination, elements
 from .elements import home_transform
 from .freeze import Pack, save_pack
 from .pipeline_checks import OUTPUTS, check_run, clear_outputs, set_threads
@@ -269,6 +269,9 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
         figs = {}
         if write_figures:
             t = time.perf_counter()
+            # matplotlib (0.7 s to import) only where a figure is drawn: a refused or
+            # figure-less run, and the command line's checks, never load it
+            from . import figures
             rv, rf, _ = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, 60)  # (area: mesh_n)
             figs = dict(
                 ring=figures.ring_views(rv, rf, os.path.join(out, "ring.png")),
