@@ -55,6 +55,27 @@ def test_build_small_particle():
     assert ni.shape[1] == 3 and nr.shape[1] == 16
 
 
+def test_a_shared_cache_measures_once_and_changes_no_bit():
+    # the thin-wall rule of peclet.packing builds twice (more probes the second time): with a
+    # shared cache the second build integrates no cell, and both equal cache-free builds
+    box = ([-0.5] * 3, [0.5] * 3)
+    cache = {}
+    got = []
+    for count in (300, 500):
+        b1, b2 = geom.SceneBuilder(), geom.SceneBuilder()
+        plain = scene_particle.build(b1, _solid(b1), bounds=box, shell_resolution=48,
+                                     target_shell_points=count, tol=1e-5)
+        rows = sum(len(v) for v in cache.values() if isinstance(v, dict))
+        shared = scene_particle.build(b2, _solid(b2), bounds=box, shell_resolution=48,
+                                      target_shell_points=count, tol=1e-5, cache=cache)
+        got.append(sum(len(v) for v in cache.values() if isinstance(v, dict)) - rows)
+        for f in ("shell", "node_ints", "node_reals", "com", "quat", "principal"):
+            assert np.asarray(getattr(shared, f)).tobytes() == \
+                np.asarray(getattr(plain, f)).tobytes(), f
+        assert shared.volume == plain.volume and shared.volume_error == plain.volume_error
+    assert got[0] > 0 and got[1] == 0          # cells integrated by the first build only
+
+
 def test_count_for_spacing_inverts_even_spacing():
     n = count_for_spacing(6.56, 0.040)
     assert even_spacing(6.56, n) <= 0.040 < even_spacing(6.56, n - 1)

@@ -64,7 +64,7 @@ def _as_bounds(bounds):
 
 
 def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points=1200,
-          density=1.0, seed=0, tol=1e-8):
+          density=1.0, seed=0, tol=1e-8, cache=None):
     """Measure ``root``, reframe it to its principal frame and place shell probes.
 
     Parameters
@@ -78,6 +78,9 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
     shell_resolution : int in [8, 1024], marching-cubes lattice per axis for the shell.
     target_shell_points : int >= 4, number of shell probes (exact).
     density : > 0.
+    cache : optional dict shared between builds of the same tree and bounds (the quadrature's,
+        :func:`quadrature.body_properties`): a second build, e.g. with more shell probes,
+        measures nothing again. The results are bitwise the same with or without it.
     """
     lo, hi = _as_bounds(bounds)
     t = target_shell_points
@@ -87,7 +90,7 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
     if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 8 <= r <= 1024:
         raise ValueError(f"shell_resolution must be an integer in [8, 1024], got {r!r}")
     home, props = quadrature.principal_frame(builder, root, lo, hi, density=density, n=n,
-                                              tol=tol)
+                                              tol=tol, cache=cache)
     # a box in the home frame containing the solid: the authoring box's corners, rotated
     At = props.axes.T
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
