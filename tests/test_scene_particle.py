@@ -4,16 +4,7 @@ import pytest
 
 from peclet.core import geom
 from peclet.core.geom.shell import count_for_spacing, even_spacing
-from peclet.dem import scene_particle
-
-
-class _FakeSim:
-    def __init__(self):
-        self.calls = []
-
-    def add_scene_shape(self, *args):
-        self.calls.append(args)
-        return 7
+from peclet.dem import Simulation, scene_particle
 
 
 def _solid(b):
@@ -48,11 +39,16 @@ def test_build_small_particle():
     # even spread: median NN spacing close to the hexagonal expectation
     exp = even_spacing(sp.spacing["area"], len(sp.shell))
     assert 0.6 * exp <= sp.spacing["median_spacing"] <= 1.2 * exp
-    sim = _FakeSim()
-    assert sp.register(sim) == 7
-    ni, nr, home, shell, rad = sim.calls[0]
-    assert home == sp.home_root and rad == sp.bounding_radius and shell is sp.shell
-    assert ni.shape[1] == 3 and nr.shape[1] == 16
+    # registered in a real Simulation (after a sphere, so the id is not trivially 0)
+    sim = Simulation(2)
+    sim.add_sphere_shape(0.1)
+    sid = sp.register(sim)
+    assert sid == 1
+    shape = sim._shapes[sid]
+    assert shape.root == sp.home_root and shape.radius == sp.bounding_radius
+    assert np.array_equal(shape.shell, sp.shell)
+    assert shape.node_ints.tobytes() == sp.node_ints.tobytes()
+    assert shape.node_reals.tobytes() == sp.node_reals.tobytes()
 
 
 def test_a_shared_cache_measures_once_and_changes_no_bit():
