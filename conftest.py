@@ -66,10 +66,11 @@ def pytest_collection_modifyitems(config, items):
 
 def pytest_sessionstart(session):
     """A whole-suite run (no test paths named) on a cold Numba cache compiles the page's
-    kernels first, the DEM step in two child processes while this one measures the Pall ring
-    (what ``peclet warm`` does), before any xdist worker starts. Otherwise both workers compile
-    the same kernels at once, each a core's worth of minutes (cold test command: 281 s with
-    two workers compiling side by side). Nothing is compiled that a warm cache holds."""
+    kernels first, the DEM step in two child processes while this one compiles the quadrature's
+    and the shell's on a small solid (what ``peclet warm`` does), before any xdist worker
+    starts. Otherwise both workers compile the same kernels at once, each a core's worth of
+    minutes (cold test command: 281 s with two workers compiling side by side). Nothing is
+    compiled that a warm cache holds."""
     config = session.config
     if hasattr(config, "workerinput") or config.args_source != pytest.Config.ArgsSource.TESTPATHS:
         return
@@ -82,9 +83,9 @@ def pytest_sessionstart(session):
     children = warm.start_background()
     quadrature = kernels_cached() is False
     if quadrature:
-        from peclet.packing.api import _resolve_element, element_model
+        from peclet.dem import scene_particle
 
-        element_model(_resolve_element("pall_ring"))
+        scene_particle.compile_kernels()
     ok = warm.finish(children)
     if children is not None or quadrature:
         tr = config.pluginmanager.get_plugin("terminalreporter")

@@ -85,3 +85,53 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="target"):
         scene_particle.build(b, root, bounds=([-0.5] * 3, [0.5] * 3), n=4,
                              target_shell_points=0)
+
+
+
+_SIGNATURES = """
+import json, sys
+from numba.core.registry import CPUDispatcher
+from peclet.core import geom
+from peclet.dem import scene_particle
+
+
+def signatures():
+    out = {}
+    for name, mod in list(sys.modules.items()):
+        if name.startswith(("peclet.core.geom", "peclet.dem.scene_particle")) and mod:
+            for attr, f in vars(mod).items():
+                if isinstance(f, CPUDispatcher):
+                    out[name + "." + attr] = len(f.signatures)
+    return out
+
+
+scene_particle.compile_kernels()
+before = signatures()
+b = geom.SceneBuilder()
+root = b.add_difference(b.add_leaf("torus", [0.3, 0.1]),
+                        b.add_leaf("box", [0.1, 0.2, 0.5], translation=[0.3, 0.0, 0.0]))
+sp = scene_particle.build(b, root, bounds=([-0.45] * 3, [0.45] * 3), n=16,
+                          shell_resolution=48, target_shell_points=400, tol=1e-6)
+after = signatures()
+print(json.dumps(dict(added={k: v for k, v in after.items() if before.get(k, 0) != v},
+                      quadrature=before["peclet.core.geom.quadrature.refine._integrate_share"],
+                      probes=len(sp.shell))))
+"""
+
+
+@pytest.mark.heavy
+def test_compile_kernels_serves_a_build_of_any_tree():
+    # peclet warm and the suite's cold start compile on a small solid at n 8, tol 1e-4; in a
+    # fresh process (each kernel's signatures are those loaded or compiled there) a build of
+    # another tree at n 16, tol 1e-6 must then add no signature to any kernel of the geometry
+    # layer
+    import json
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, "-c", _SIGNATURES], capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr
+    got = json.loads(p.stdout)
+    assert got["quadrature"] == 1 and got["probes"] == 400
+    assert got["added"] == {}

@@ -2,8 +2,9 @@
 
     peclet warm
 
-Compiles the DEM step's kernels in a child process while this one compiles the quadrature (by
-measuring the page's Pall ring) and then the Hertz–Mindlin substep, so they land in Numba's
+Compiles the DEM step's kernels in a child process while this one compiles the quadrature and
+the shell probes (on a small solid: :func:`peclet.dem.scene_particle.compile_kernels`) and then
+the Hertz–Mindlin substep, so they land in Numba's
 on-disk cache on two cores at once; last the colour-by-colour solve of large beds (``peclet
 stir``'s path);
 every later run (and the test suite) then starts without compiling them. Prints what was
@@ -25,13 +26,12 @@ def add_parser(sub):
 
 
 def run(args):
-    from peclet.dem import warm
+    from peclet.dem import scene_particle, warm
     from peclet.dem.simulation import step_kernels_cached
-    from peclet.packing.api import _resolve_element, element_model
 
     t0 = time.perf_counter()
     child = warm.start_background()
-    element_model(_resolve_element("pall_ring"))          # the quadrature's kernels, here
+    scene_particle.compile_kernels()                      # the quadrature's kernels, here
     t_quad = time.perf_counter() - t0
     warm.compile_step_kernels("hertz")                    # beside the detection's child
     ok = warm.finish(child)
