@@ -4,11 +4,10 @@
 
 Compiles the DEM step's kernels in a child process while this one compiles the quadrature and
 the shell probes (on a small solid: :func:`peclet.dem.scene_particle.compile_kernels`) and then
-the Hertz–Mindlin substep, so they land in Numba's
-on-disk cache on two cores at once; last the colour-by-colour solve of large beds (``peclet
-stir``'s path);
-every later run (and the test suite) then starts without compiling them. Prints what was
-compiled and how long it took; nothing else is written. See :mod:`peclet.dem.warm`.
+the Hertz–Mindlin substep, so they land in Numba's on-disk cache on two cores at once; last
+the colour-by-colour solve of large beds (``peclet stir``'s path). Every later run (and the
+test suite) then starts without compiling them. Prints what was compiled and how long it took;
+nothing else is written. See :mod:`peclet.dem.warm`.
 """
 from __future__ import annotations
 
