@@ -35,6 +35,14 @@ def pytest_addoption(parser):
 def pytest_configure(config):
     config.addinivalue_line("markers", "heavy: the heavy tier, run by --tier heavy or all "
                             "(and by .ci/run), not by the README's test command")
+    # the results cache (peclet.core.results_cache) of this run only, shared by its xdist
+    # workers and child processes (they inherit the environment): no test reads what an
+    # earlier run or the user left, none writes into the user's cache
+    if not hasattr(config, "workerinput"):
+        import tempfile
+
+        config._peclet_cache = tempfile.mkdtemp(prefix="peclet-test-cache-")
+        os.environ["PECLET_CACHE_DIR"] = config._peclet_cache
     # `-n` alone schedules in fixed batches; worksteal lets an idle worker take tests queued
     # for a busy one, so a run does not end on one worker. Not in addopts: a --dist there
     # would also switch pytest-benchmark off in benchmarks/tracked (it sees xdist as active).
@@ -93,6 +101,14 @@ def pytest_sessionstart(session):
             tr.write_line(f"cold Numba cache: the page's kernels compiled first in "
                           f"{time.perf_counter() - t:.0f} s (DEM step children "
                           f"{'ok' if ok else 'failed: the tests compile it'})")
+
+
+def pytest_unconfigure(config):
+    d = getattr(config, "_peclet_cache", None)
+    if d is not None:
+        import shutil
+
+        shutil.rmtree(d, ignore_errors=True)
 
 
 def pytest_report_header(config):

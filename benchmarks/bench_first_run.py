@@ -5,10 +5,12 @@ Clones this repository (its committed HEAD) into a temporary directory, creates 
 downloaded again: what is timed is our install, compilation and run, not the network), installs
 the clone into it with the README's command, and with an empty ``NUMBA_CACHE_DIR`` times
 
-1. ``peclet pall-ring --out R1``   (cold: every kernel compiles),
-2. ``peclet pall-ring --out R2``   (warm: the same, from the cache),
-3. optionally (``--tests``) the README's test command (the fast tier), cold (its own empty
-   cache).
+1. ``peclet pall-ring --out R1``   (cold: every kernel compiles, an empty results cache),
+2. ``peclet pall-ring --out R2``   (warm: the kernels from Numba's cache, Step 6's sweep from
+   the results cache that run 1 filled, :mod:`peclet.core.results_cache`),
+3. the same with ``PECLET_CACHE_DIR=off`` (warm kernels, the sweep computed again),
+4. optionally (``--tests``) the README's test command (the fast tier), cold (its own empty
+   Numba cache; the suite keeps its own results cache).
 
 Targets (issue 27, 2 cores): cold main job <= 60 s, warm no slower than before, cold tests
 <= 4 min. Writes benchmarks/results/first_run.json and prints a table. Run on a quiet machine:
@@ -52,11 +54,14 @@ def main(argv=None):
         subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", venv],
                        check=True)
         env = dict(os.environ, PATH=os.path.join(venv, "bin") + os.pathsep + os.environ["PATH"],
-                   NUMBA_CACHE_DIR=os.path.join(tmp, "numba"))
+                   NUMBA_CACHE_DIR=os.path.join(tmp, "numba"),
+                   PECLET_CACHE_DIR=os.path.join(tmp, "results"))
         env.pop("PYTHONPATH", None)
         rows["install"], _ = timed("pip install -q -e .", clone, env)
         rows["pall_ring_cold"], out = timed("peclet pall-ring --out R1 --quiet", clone, env)
         rows["pall_ring_warm"], _ = timed("peclet pall-ring --out R2 --quiet", clone, env)
+        rows["pall_ring_warm_no_results_cache"], _ = timed(
+            "peclet pall-ring --out R3 --quiet", clone, dict(env, PECLET_CACHE_DIR="off"))
         if a.tests:
             env_t = dict(env, NUMBA_CACHE_DIR=os.path.join(tmp, "numba_tests"))
             rows["tests_cold"], _ = timed("pip install -q -e '.[test]' && python -m pytest -n auto "

@@ -111,6 +111,7 @@ def test_every_output_exists_and_is_sane(reduced_run):
         js["config"]["protocol"]["quench_steps"]
     assert k["all_in_box"] and k["lowest_probe"] > -0.12   # nothing through the floor
     assert js["sweep"] == []                 # the sweep's quadrature: test_wall_sweep below
+    assert js["sweep_source"] == "computed"  # (nothing kept for an empty sweep)
     for needle in ("bed voidage eps", "envelope packing fraction", "mean coordination",
                    "the page"):
         assert needle in table

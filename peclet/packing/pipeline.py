@@ -76,7 +76,8 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     to skip Step 3's build; sweep: wall thicknesses t
     (in D) for Step 6 and sweep_n their quadrature resolution (computed in a low-priority child
     process beside the measurement and the pour, :mod:`peclet.packing.sweep_process`: the same
-    rows bit for bit); mesh_n: marching-cubes
+    rows bit for bit; read from the results cache when an earlier run computed them,
+    ``sweep_source`` in the result); mesh_n: marching-cubes
     lattice for the surface area; overwrite: replace the files of an earlier run in ``out``
     (without it such a directory is refused; with it those files are removed first, so no old
     figure stays beside new results; other files in ``out`` are never touched); flow: None
@@ -293,6 +294,8 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
         timing["sweep_wait"] = time.perf_counter() - t
         rows = analysis.sweep_voidage(fractions, fr[0]["f_env"], fr[0]["f_env_se"])
         res["sweep"] = rows
+        # read from the results cache (an earlier run's rows, the same bits) or computed now
+        res["sweep_source"] = "cache" if sweeper.from_cache else "computed"
         if write_figures:
             t = time.perf_counter()
             figs["voidage_sweep"] = figures.voidage_sweep(
