@@ -42,8 +42,8 @@ def test_a_coarse_grid_error_estimate_bounds_its_error():
 # is not committed): a thin box turned off the axes, in the certificate's box (its bounding ball
 # grown 2%), n = 32. A corner tip is missed at every tol: relative volume error 7.2e-5 at tol
 # 1e-3, 1e-4 and 1e-5 alike, against an estimate of 6.8e-7 (no cell was refined). More Newton
-# starts in surface_in_cell (the 8 corner regions too) do not find it: the tip lies in a cut
-# cell, where both Gauss rules miss the same piece and agree. The same at b0ad71b (before
+# starts in surface_in_cell (the 8 corner regions too) change nothing, so the tip is probably in
+# a cut cell whose two Gauss rules miss the same piece and agree. The same at b0ad71b (before
 # session 16's quadrature changes): not a regression, the limitation above in another solid.
 def _turned_thin_box(tol):
     import numpy as np
