@@ -41,8 +41,9 @@ def pytest_configure(config):
     if not hasattr(config, "workerinput"):
         import tempfile
 
-        config._peclet_cache = tempfile.mkdtemp(prefix="peclet-test-cache-")
-        os.environ["PECLET_CACHE_DIR"] = config._peclet_cache
+        config._peclet_cache = (tempfile.mkdtemp(prefix="peclet-test-cache-"),
+                                os.environ.get("PECLET_CACHE_DIR"))
+        os.environ["PECLET_CACHE_DIR"] = config._peclet_cache[0]
     # `-n` alone schedules in fixed batches; worksteal lets an idle worker take tests queued
     # for a busy one, so a run does not end on one worker. Not in addopts: a --dist there
     # would also switch pytest-benchmark off in benchmarks/tracked (it sees xdist as active).
@@ -104,11 +105,18 @@ def pytest_sessionstart(session):
 
 
 def pytest_unconfigure(config):
-    d = getattr(config, "_peclet_cache", None)
-    if d is not None:
+    # the run's results cache removed and the caller's setting put back (a pytest.main() call
+    # in a longer-lived process must not leave it pointing at a deleted directory)
+    kept = getattr(config, "_peclet_cache", None)
+    if kept is not None:
         import shutil
 
+        d, before = kept
         shutil.rmtree(d, ignore_errors=True)
+        if before is None:
+            os.environ.pop("PECLET_CACHE_DIR", None)
+        else:
+            os.environ["PECLET_CACHE_DIR"] = before
 
 
 def pytest_report_header(config):
