@@ -26,10 +26,12 @@ from numba import njit
 
 from .constants import (FLICKER, HASH_STEPS, I0, I1, I2, KINK_SLOPE, KINK_STEPS, R_EXTRA,
                         R_MHI, R_MHP, R_MLO, R_MLP, R_MX, R_MY, R_UBRK, R_UFLAG, R_UKNOT,
-                        R_VBRK, R_VFLAG, R_VKNOT, R_XP, R_XT, TRACK_STEPS, U_BREAK_STEPS, U_FLICKER, U_NUDGE,
-                        U_ZONE, U_ZONE_BREAKS, U_ZONE_MAX, V_NUDGE, V_PROBES)
+                        R_VBRK, R_VFLAG, R_VKNOT, R_XP, R_XT, TRACK_STEPS, U_BACKTRACKS,
+                        U_BREAK_STEPS, U_FLICKER, U_FOLLOW, U_NUDGE, U_WIDE, U_ZONE,
+                        U_ZONE_BREAKS, U_ZONE_MAX, V_NUDGE, V_PROBES)
 from .line_search import mix
-from .pieces import extrapolate, keep_seeds, knots, merge, piece_mids, sort_prefix, vsig
+from .pieces import (extrapolate, keep_seeds, knots, merge, narrowest_piece, piece_mids,
+                     sort_prefix, vsig)
 
 #: What only the u-level scan carries: the v-piece midpoints seen per u-piece (``seeds``
 #: (MAX_BREAKS, SEEDS), their counts ``nseed``) and the number of re-probes per probe interval
@@ -92,6 +94,7 @@ def _scan(C, u, steps, nex, U=None):
     zone_max = U_ZONE_MAX * (c1 - c0)
     jump = step
     nshort = 0
+    nback = 0
     ex = S[R_EXTRA]
     seq = np.uint64(1469598103934665603)
     brk[0] = c0
@@ -149,8 +152,16 @@ def _scan(C, u, steps, nex, U=None):
                         if n_hi < 0:
                             return -1, _NO_HASH
                     else:
+                        # the search may go below x (to just above the last break) a few
+                        # times per scan (each such search costs up to ~50 probes)
+                        floor = x
+                        if nback < U_BACKTRACKS:
+                            floor = min(x, brk[m - 1] + max(nudge, step))
+                        x_was = x
                         hi_, h_hi, nx, nhi = _locate_u(C, U, steps, track, x, hx, nx, y, hy,
-                                                       ny)
+                                                       ny, floor)
+                        if hi_ < x_was:
+                            nback += 1
                         if nx < 0:
                             return -1, _NO_HASH
                         if nre < U.reprobes and hi_ - x > 4.0 * U_FLICKER * (c1 - c0):
@@ -286,15 +297,17 @@ def _locate_v(C, u, steps, x, hx, lx, y, hy, ny, ly):
 
 
 @njit(cache=True, inline="always")
-def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
+def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny, floor):
     """The first change of the v-structure hash in (x, y] (hx at x, with its v-piece
     midpoints S[R_MLO, :nlo]; hy at y, midpoints S[R_MY, :ny]), by bisection to 2^-steps.
 
     Each bisection probe looks for v-pieces at the midpoints seen at both bracket ends and,
     with re-probes, at those extrapolated from each end's previous position (a wedge closing
     at a vertex: its midpoint moves along a line). With re-probes, the lower end is probed
-    again with the upper end's pieces, and the search restarts from x if the change lies
-    below. Returns (upper end, its hash, count of the lower end's midpoints now in S[R_MLO],
+    again with the upper end's pieces, and the search restarts if the change lies below: from
+    x, or from ``floor`` (just above the scan's last break) when it lies below x itself (x's
+    probe, without those pieces, missed them), following the pieces down from the upper end
+    first. Returns (upper end, its hash, count of the lower end's midpoints now in S[R_MLO],
     count of the upper end's in S[R_MHI]); the third is -1 on overflow."""
     S = C.S
     v0 = C.v0
@@ -310,8 +323,19 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
         nhp = -I1
         ulp = lo_
         uhp = hi_
-        for _ in range(steps):
-            mid = 0.5 * (lo_ + hi_)
+        # a later attempt first follows hi_'s pieces down from hi_ in doubling steps (each
+        # probe where the extrapolation from the last two puts them) until they are gone,
+        # then bisects that last step: a wedge whose midpoint runs faster than it closes is
+        # lost by a bisection's first probes, far from hi_, but not by small steps from it
+        h = U_FOLLOW * (hi_ - lo_) if attempt > 0 else 0.0
+        it = 0
+        while it < steps:
+            if h > 0.0 and hi_ - h > lo_:
+                mid = hi_ - h
+            else:
+                h = 0.0
+                mid = 0.5 * (lo_ + hi_)
+                it += 1
             nxp = I0
             if U.reprobes > 0:
                 nxp = extrapolate(S, R_MLO, nlo, lo_, R_MLP, nlp, ulp, mid, v0, v1, I0)
@@ -326,13 +350,15 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
                 ulp = lo_
                 lo_ = mid
                 nlo = piece_mids(S, mm, R_MLO)
+                h = 0.0
             else:
                 nhp = merge(S, R_MHI, nhi, R_MHI, I0, R_MHP)
                 uhp = hi_
                 hi_ = mid
                 h_hi = hm
                 nhi = piece_mids(S, mm, R_MHI)
-        if attempt == U.reprobes or lo_ <= x:
+                h *= 2.0
+        if attempt == U.reprobes or lo_ <= floor:
             break
         # lo_ was probed with the pieces tracked from its own side, so a piece thinning
         # towards lo_ (a wedge closing at a vertex further down, whose midpoint moves faster
@@ -343,10 +369,17 @@ def _locate_u(C, U, steps, track, x, hx, nlo, y, hy, ny):
             return hi_, h_hi, -1, nhi
         if hr == hx:
             break
+        if lo_ <= x and narrowest_piece(S, mr) <= U_WIDE * (v1 - v0):
+            # at x itself only a structure of wide pieces is followed below it: a narrow
+            # one is a tangency's flicker (round-off deciding a grazing pair of roots), and
+            # following each of those down through a grazing zone costs minutes
+            break
         hi_ = lo_
         h_hi = hr
         nhi = piece_mids(S, mr, R_MHI)
-        lo_ = x
+        # the change lies below: in (x, hi_), or below x, which the scan passed as unchanged
+        # because x's probe did not look where hi_'s pieces are
+        lo_ = x if hi_ > x else floor
         nlo = merge(S, R_MX, nx0, R_MX, I0, R_MLO)
     return hi_, h_hi, nlo, nhi
 

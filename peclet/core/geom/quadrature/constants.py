@@ -96,6 +96,21 @@ TRACK_STEPS = np.int64(24)
 #: Re-probes of a bisected u-break's upper end per probe interval (see breaks.locate_u); a
 #: cell that overflows with them is integrated again without.
 U_REPROBES = np.int64(4)
+#: A re-probe attempt of the u-bisection first follows the upper end's pieces down from it in
+#: doubling steps, the first this fraction of the bracket (then at most 24 probes reach its
+#: lower end). A thin box turned off the axes (half extents 0.10 x 1.0 x 0.10) lost a wedge at
+#: a vertex: it first shows at a probe 0.0097 above the vertex, its midpoint moving 14 times
+#: faster than it opens, and bisection from the bracket's middle never saw it again.
+U_FOLLOW = 2.0 ** -24
+#: ... and a u-bisection goes below its bracket (a change the scan passed, unseen at its last
+#: probe, as in that box) only when every v-piece seen there is wider than this fraction of
+#: the cell: a grazing pair of roots (round-off's flicker at a tangency) is far narrower
+#: (without this test the rotated torus of tests/test_quadrature.py ran over 15 minutes) ...
+U_WIDE = 1e-6
+#: ... and at most this many times per u-scan, which then goes on from below where it was
+#: (without a cap the rotated hollow cylinder at tol 1e-9 did not finish in 10 minutes; with
+#: 4, 39 s against 34 s for the code that never goes below, cold compile included).
+U_BACKTRACKS = 4
 #: u-breaks closer than this to the previous one are flicker (4 u-bisection resolutions).
 U_FLICKER = 4.0 / (V_PROBES * 2.0 ** U_BREAK_STEPS)
 #: More than U_ZONE_BREAKS breaks in a row each closer than U_ZONE (of the cell) to the one

@@ -89,6 +89,18 @@ def piece_mids(S, m, row):
 
 
 @njit(cache=True)
+def narrowest_piece(S, m):
+    """The width of the narrowest of the m - 1 v-pieces in S[R_VBRK] (of positive width)."""
+    brk = S[R_VBRK]
+    w = np.inf
+    for i in range(m - 1):
+        d = brk[i + 1] - brk[i]
+        if 0.0 < d < w:
+            w = d
+    return w
+
+
+@njit(cache=True)
 def merge(S, ra, na, rb, nb, dst):
     """Sorted merge of S[ra, 0:na] and S[rb, 0:nb] into S[dst] (dst may alias neither)."""
     A = S[ra]
