@@ -7,10 +7,22 @@ up front instead of showing an ETA of hours. Numba keeps a kernel's cache as an 
 counts as cached when its index loads with at least one compiled signature. Reading the index
 uses Numba's cache object, an internal interface: if it moves, :func:`is_cached` answers None
 (unknown) rather than guessing.
+
+:func:`purge_stale` (run by ``import peclet``) drops peclet's compiled kernels when any of its
+source files changed since they were compiled. Numba checks a kernel's entry against its OWN
+file only, yet a kernel keeps, in its entry, the machine code of every kernel it calls from
+other modules: after an edit of ``quadrature/breaks.py`` (a ``git pull``, an editable install)
+the unchanged ``cell_rule.py`` went on running the old break search from its cache, silently.
 """
 from __future__ import annotations
 
-__all__ = ["is_cached", "all_cached"]
+import os
+
+__all__ = ["is_cached", "all_cached", "purge_stale"]
+
+#: Name of the file, beside the compiled kernels of peclet's top package, that holds the source
+#: stamp they were compiled from.
+STAMP_FILE = "peclet-kernels.stamp"
 
 
 def is_cached(dispatcher):
@@ -32,3 +44,78 @@ def all_cached(dispatchers):
         return False
     return None if any(s is None for s in states) else True
 
+
+
+def _cache_dirs(package_root):
+    """{package directory: the directory Numba keeps its modules' kernels in} for every
+    directory of peclet holding Python files, found with Numba's own cache locators (an internal
+    interface; raises if it moved)."""
+    from numba.core.caching import CacheImpl
+
+    def anchor():                      # a function for the locators to place
+        pass
+
+    out = {}
+    for d, dirs, names in os.walk(package_root):
+        dirs[:] = sorted(x for x in dirs if x != "__pycache__")
+        py = sorted(n for n in names if n.endswith(".py"))
+        if not py:
+            continue
+        for cls in CacheImpl._locator_classes:
+            loc = cls.from_function(anchor, os.path.join(d, py[0]))
+            if loc is not None:
+                out[d] = loc.get_cache_path()
+                break
+    return out
+
+
+def purge_stale(package_root=None):
+    """Delete peclet's compiled kernels (Numba's ``.nbi`` / ``.nbc`` files) unless they were
+    compiled from the current sources, and record the current sources' stamp
+    (:func:`peclet.core.results_cache.code_stamp`: every ``.py`` file of the package, the
+    library versions, the CPU) beside them. Returns the number of files deleted, or None when
+    Numba's cache layout could not be found (nothing is then touched).
+
+    Cheap when nothing changed (the stamp, about 10 ms). Two processes that start together
+    after a change may both purge; a kernel one of them compiled in between is then compiled
+    again, never loaded stale (Numba reads an entry whose file vanished as a miss)."""
+    from .files import atomic_write
+    from .results_cache import code_stamp
+
+    root = package_root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        dirs = _cache_dirs(root)
+    except Exception:                  # Numba's internals moved: leave its cache alone
+        return None
+    if root not in dirs:
+        return None
+    stamp_path = os.path.join(dirs[root], STAMP_FILE)
+    stamp = code_stamp()
+    try:
+        with open(stamp_path) as fh:
+            if fh.read() == stamp:
+                return 0
+    except OSError:
+        pass
+    gone = 0
+    for cache in sorted(set(dirs.values())):
+        try:
+            names = os.listdir(cache)
+        except OSError:
+            continue
+        for name in names:
+            if name.endswith((".nbi", ".nbc")):
+                try:
+                    os.remove(os.path.join(cache, name))
+                    gone += 1
+                except OSError:
+                    pass
+    def write(tmp):
+        with open(tmp, "w") as fh:
+            fh.write(stamp)
+
+    try:
+        atomic_write(stamp_path, write)
+    except OSError:                    # an unwritable cache: Numba will not write one either
+        pass
+    return gone
