@@ -50,10 +50,10 @@ def test_an_edited_callee_is_not_run_from_a_callers_stale_cache(tmp_path):
 def test_unchanged_sources_keep_their_kernels_and_a_foreign_stamp_drops_them(tmp_path):
     _copy(tmp_path)
     probe = ("import os, peclet; from peclet.core import jitcache as j;"
-             "d = j._cache_dirs(os.path.dirname(peclet.__file__));"
-             "print(sum(n.endswith(('.nbi', '.nbc')) for c in set(d.values())"
-             " for n in os.listdir(c)));"
-             "print(os.path.join(d[os.path.dirname(peclet.__file__)], j.STAMP_FILE))")
+             "r = os.path.dirname(peclet.__file__);"
+             "c = {j._cache_dir(d) for d, _, _ in os.walk(r)} - {None};"
+             "print(sum(n.endswith(('.nbi', '.nbc')) for x in c for n in os.listdir(x)));"
+             "print(os.path.join(j._cache_dir(r), j.STAMP_FILE))")
     _python(tmp_path, _RUN)
     kept, stamp = _python(tmp_path, probe)
     assert int(kept) > 0

@@ -45,51 +45,50 @@ def all_cached(dispatchers):
     return None if any(s is None for s in states) else True
 
 
-
-def _cache_dirs(package_root):
-    """{package directory: the directory Numba keeps its modules' kernels in} for every
-    directory of peclet holding Python files, found with Numba's own cache locators (an internal
-    interface; raises if it moved)."""
+def _cache_dir(directory):
+    """The directory Numba keeps the kernels of the modules in ``directory`` in, found with
+    Numba's own cache locators (an internal interface; raises if it moved), or None."""
     from numba.core.caching import CacheImpl
 
     def anchor():                      # a function for the locators to place
         pass
 
-    out = {}
-    for d, dirs, names in os.walk(package_root):
-        dirs[:] = sorted(x for x in dirs if x != "__pycache__")
-        py = sorted(n for n in names if n.endswith(".py"))
-        if not py:
-            continue
-        for cls in CacheImpl._locator_classes:
-            loc = cls.from_function(anchor, os.path.join(d, py[0]))
-            if loc is not None:
-                out[d] = loc.get_cache_path()
-                break
-    return out
+    py = sorted(n for n in os.listdir(directory) if n.endswith(".py"))
+    if not py:
+        return None
+    for cls in CacheImpl._locator_classes:
+        loc = cls.from_function(anchor, os.path.join(directory, py[0]))
+        if loc is not None:
+            return loc.get_cache_path()
+    return None
 
 
-def purge_stale(package_root=None):
+def _package_root():
+    return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def purge_stale():
     """Delete peclet's compiled kernels (Numba's ``.nbi`` / ``.nbc`` files) unless they were
     compiled from the current sources, and record the current sources' stamp
     (:func:`peclet.core.results_cache.code_stamp`: every ``.py`` file of the package, the
-    library versions, the CPU) beside them. Returns the number of files deleted, or None when
-    Numba's cache layout could not be found (nothing is then touched).
+    library versions, the CPU) beside the top package's kernels. Returns the number of files
+    deleted, or None when Numba's cache layout could not be found (nothing is then touched).
 
-    Cheap when nothing changed (the stamp, about 10 ms). Two processes that start together
-    after a change may both purge; a kernel one of them compiled in between is then compiled
-    again, never loaded stale (Numba reads an entry whose file vanished as a miss)."""
+    When nothing changed it reads one stamp file (the stamp itself costs about 10 ms). Two
+    processes that start together after a change may both purge; a kernel one of them compiled
+    in between is then compiled again, never loaded stale (Numba reads an entry whose file
+    vanished as a miss)."""
     from .files import atomic_write
     from .results_cache import code_stamp
 
-    root = package_root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = _package_root()
     try:
-        dirs = _cache_dirs(root)
+        top = _cache_dir(root)
     except Exception:                  # Numba's internals moved: leave its cache alone
         return None
-    if root not in dirs:
+    if top is None:
         return None
-    stamp_path = os.path.join(dirs[root], STAMP_FILE)
+    stamp_path = os.path.join(top, STAMP_FILE)
     stamp = code_stamp()
     try:
         with open(stamp_path) as fh:
@@ -97,8 +96,17 @@ def purge_stale(package_root=None):
                 return 0
     except OSError:
         pass
+    caches = set()
+    for d, dirs, _ in os.walk(root):
+        dirs[:] = sorted(x for x in dirs if x != "__pycache__")
+        try:
+            c = _cache_dir(d)
+        except Exception:
+            return None
+        if c is not None:
+            caches.add(c)
     gone = 0
-    for cache in sorted(set(dirs.values())):
+    for cache in sorted(caches):
         try:
             names = os.listdir(cache)
         except OSError:
@@ -110,6 +118,7 @@ def purge_stale(package_root=None):
                     gone += 1
                 except OSError:
                     pass
+
     def write(tmp):
         with open(tmp, "w") as fh:
             fh.write(stamp)

@@ -157,10 +157,9 @@ def _scan(C, u, steps, nex, U=None):
                         floor = x
                         if nback < U_BACKTRACKS:
                             floor = min(x, brk[m - 1] + max(nudge, step))
-                        x_was = x
                         hi_, h_hi, nx, nhi = _locate_u(C, U, steps, track, x, hx, nx, y, hy,
                                                        ny, floor)
-                        if hi_ < x_was:
+                        if hi_ < x:
                             nback += 1
                         if nx < 0:
                             return -1, _NO_HASH
