@@ -17,7 +17,7 @@ import numpy as np
 from .validation import PecletArgumentError
 
 __all__ = ["atomic_write", "atomic_directory", "check_writable_path", "check_output_dir",
-           "clear_outputs", "jsonable", "write_json"]
+           "clear_outputs", "jsonable", "write_json", "write_text"]
 
 
 def _umask():
@@ -93,6 +93,15 @@ def jsonable(x):
     if isinstance(x, (np.floating, float)):
         return float(x) if math.isfinite(float(x)) else None
     return x
+
+
+def write_text(path, text, newline=None):
+    """Write the string ``text`` to ``path`` atomically (``newline`` as for :func:`open`:
+    ``""`` keeps the line endings ``text`` already has, as a CSV writer's). Returns ``path``."""
+    def write(tmp):
+        with open(tmp, "w", newline=newline) as fh:
+            fh.write(text)
+    return atomic_write(path, write)
 
 
 def write_json(path, obj, indent=1, sort_keys=False):

@@ -63,10 +63,6 @@ def _cache_dir(directory):
     return None
 
 
-def _package_root():
-    return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
 def purge_stale():
     """Delete peclet's compiled kernels (Numba's ``.nbi`` / ``.nbc`` files) unless they were
     compiled from the current sources, and record the current sources' stamp
@@ -78,12 +74,11 @@ def purge_stale():
     processes that start together after a change may both purge; a kernel one of them compiled
     in between is then compiled again, never loaded stale (Numba reads an entry whose file
     vanished as a miss)."""
-    from .files import atomic_write
-    from .results_cache import code_stamp
+    from .files import write_text
+    from .results_cache import code_stamp, package_dirs, package_root
 
-    root = _package_root()
     try:
-        top = _cache_dir(root)
+        top = _cache_dir(package_root())
     except Exception:                  # Numba's internals moved: leave its cache alone
         return None
     if top is None:
@@ -97,8 +92,7 @@ def purge_stale():
     except OSError:
         pass
     caches = set()
-    for d, dirs, _ in os.walk(root):
-        dirs[:] = sorted(x for x in dirs if x != "__pycache__")
+    for d in package_dirs():
         try:
             c = _cache_dir(d)
         except Exception:
@@ -118,13 +112,8 @@ def purge_stale():
                     gone += 1
                 except OSError:
                     pass
-
-    def write(tmp):
-        with open(tmp, "w") as fh:
-            fh.write(stamp)
-
     try:
-        atomic_write(stamp_path, write)
+        write_text(stamp_path, stamp)
     except OSError:                    # an unwritable cache: Numba will not write one either
         pass
     return gone

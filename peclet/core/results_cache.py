@@ -11,7 +11,7 @@ installed ``peclet`` package (its relative path and bytes), the versions of Pyth
 numba and llvmlite, the machine and Numba's host CPU: any change to peclet's code, the numeric
 libraries or the hardware is a miss, never a stale result. JSON floats round-trip exactly, so a
 hit returns the computed values bit for bit. An entry is written whole (a temporary file
-renamed over its name, :func:`peclet.core.files.atomic_write`), so a reader sees a complete
+renamed over its name, :func:`peclet.core.files.write_text`), so a reader sees a complete
 entry or none; an entry that cannot be read or does not hold what its caller expects is a
 miss, and the next :func:`store` replaces it. Entries are small (a sweep: 1 kB) and never
 pruned: deleting the directory is always safe.
@@ -27,7 +27,7 @@ import os
 import platform
 import sys
 
-from .files import atomic_write
+from .files import write_text
 
 __all__ = ["cache_dir", "code_stamp", "load", "store", "OFF"]
 
@@ -48,6 +48,20 @@ def cache_dir():
     return os.path.join(base, "peclet")
 
 
+def package_root():
+    """The directory of the installed ``peclet`` package."""
+    return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def package_dirs():
+    """Every directory of the package (``__pycache__`` skipped), top-down in a fixed order."""
+    out = []
+    for d, dirs, _ in os.walk(package_root()):
+        dirs[:] = sorted(x for x in dirs if x != "__pycache__")
+        out.append(d)
+    return out
+
+
 def code_stamp():
     """The hex SHA-256 of peclet's source files, the numeric libraries' versions, the machine
     and Numba's host CPU (computed once per process, about 10 ms)."""
@@ -58,11 +72,9 @@ def code_stamp():
         import numpy
 
         h = hashlib.sha256()
-        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))   # the package
-        files = []
-        for d, dirs, names in os.walk(root):
-            dirs[:] = sorted(x for x in dirs if x != "__pycache__")
-            files += [os.path.join(d, f) for f in names if f.endswith(".py")]
+        root = package_root()
+        files = [os.path.join(d, f) for d in package_dirs() for f in os.listdir(d)
+                 if f.endswith(".py")]
         for f in sorted(files):
             h.update(os.path.relpath(f, root).encode() + b"\0")
             with open(f, "rb") as fh:
@@ -116,11 +128,7 @@ def store(kind, params, value):
     if path is None:
         return None
     text = json.dumps(dict(params=params, value=value), sort_keys=True, allow_nan=False)
-
-    def write(tmp):
-        with open(tmp, "w") as fh:
-            fh.write(text + "\n")
     try:
-        return atomic_write(path, write)
+        return write_text(path, text + "\n")
     except OSError:
         return None

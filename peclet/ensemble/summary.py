@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from peclet.core import files
-from peclet.core.files import atomic_write
+from peclet.core.files import atomic_write, write_text
 
 
 __all__ = ["summarize", "write_csv", "write_json", "write_figure", "LABELS", "CONFIDENCE"]
@@ -77,11 +77,7 @@ def write_csv(path, points):
     for p in points:
         w.writerow(["" if isinstance(p[c], float) and not math.isfinite(p[c])
                     else (repr(p[c]) if isinstance(p[c], float) else p[c]) for c in cols])
-
-    def write(tmp):
-        with open(tmp, "w", newline="") as fh:
-            fh.write(buf.getvalue())
-    return atomic_write(path, write)
+    return write_text(path, buf.getvalue(), newline="")
 
 
 def write_json(path, points, swept=(), extra=None):

@@ -16,7 +16,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from peclet.core.files import atomic_write, check_writable_path
+from peclet.core.files import atomic_write, check_writable_path, write_text
 from peclet.core.validation import PecletArgumentError, check_choice
 
 __all__ = ["write_vti", "read_vti", "write_vtu", "slice_figure", "full_field"]
@@ -61,11 +61,7 @@ def write_vti(path, flow):
         '        <DataArray type="UInt8" Name="fluid" format="binary">'
         f'{_b64(fluid.astype(np.uint8))}</DataArray>\n'
         '      </PointData>\n    </Piece>\n  </ImageData>\n</VTKFile>\n')
-
-    def write(tmp):
-        with open(tmp, "w") as fh:
-            fh.write(body)
-    return atomic_write(path, write)
+    return write_text(path, body)
 
 
 def read_vti(path):
