@@ -12,6 +12,7 @@ import numba
 import pytest
 
 from peclet.cli import main
+from peclet.core.outputs import MANIFEST, recording
 from peclet.packing import pipeline_checks as C
 
 CAP = int(numba.config.NUMBA_NUM_THREADS)
@@ -125,12 +126,27 @@ def test_read_only_out_is_refused_before_the_run(tmp_path, capsys):
 @pytest.mark.parametrize("name", ["results.json", "pall_ring_pack.npz", "pour.gif"])
 def test_out_holding_an_earlier_run_needs_overwrite(tmp_path, capsys, name):
     out = tmp_path / "run"
-    out.mkdir()
-    (out / name).write_text("earlier run")
+    with recording(out, C.OUTPUTS):            # as an earlier run records what it wrote
+        (out / name).write_text("earlier run")
     rc, err = _call(["--out", str(out)], capsys)
     assert rc == 2
     _assert_one_line(err, "--out", "--overwrite")
-    assert (out / name).read_text() == "earlier run" and os.listdir(out) == [name]
+    assert (out / name).read_text() == "earlier run"
+    assert sorted(os.listdir(out)) == sorted([MANIFEST, name])
+
+
+@pytest.mark.parametrize("overwrite", [[], ["--overwrite"]])
+def test_a_file_no_run_wrote_is_refused_by_name_and_kept(tmp_path, capsys, overwrite):
+    """A file at one of the run's names that no manifest lists is the user's: refused with its
+    name, with or without --overwrite, and left byte for byte."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "results.json").write_bytes(b"my own results")
+    rc, err = _call(["--out", str(out)] + overwrite, capsys)
+    assert rc == 2
+    _assert_one_line(err, "--out", "results.json is not a file an earlier peclet run wrote")
+    assert (out / "results.json").read_bytes() == b"my own results"
+    assert os.listdir(out) == ["results.json"]
 
 
 def test_out_where_an_output_name_is_a_directory(tmp_path, capsys):
@@ -143,14 +159,14 @@ def test_out_where_an_output_name_is_a_directory(tmp_path, capsys):
 
 def test_overwrite_clears_exactly_the_earlier_runs_files(tmp_path):
     out = tmp_path / "run"
-    out.mkdir()
-    for n in C.OUTPUTS:
-        (out / n).write_text("old")
+    with recording(out, C.OUTPUTS):
+        for n in C.OUTPUTS:
+            (out / n).write_text("old")
     (out / "notes.txt").write_text("mine")
     plan = C.check_run(out=str(out), overwrite=True, cli=True)
     assert set(plan.previous) == set(C.OUTPUTS)
     C.clear_outputs(plan.out, plan.previous)
-    assert os.listdir(out) == ["notes.txt"]
+    assert sorted(os.listdir(out)) == [MANIFEST, "notes.txt"]
 
 
 def test_issue_14_rings_400_box_10_passes_every_check_and_sizes_the_domain(tmp_path):

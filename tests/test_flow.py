@@ -275,13 +275,14 @@ def test_thin_wall_warning_names_the_wall(tiny_pack):
 def test_page_pipeline_with_flow_adds_k_and_ergun(tmp_path):
     # the page at reduced size (tests/test_packing_pipeline.py's stand-in particle, 6 rings,
     # 0.14 of the steps) with the flow at D/6: k and dP/L / Ergun in results.json and the table
+    from peclet.flow import page
     from peclet.packing import pipeline
     from test_packing_pipeline import standin_particle
     lines = []
     res = pipeline.run(out=str(tmp_path / "pall"), rings=6, seed=2, steps_scale=0.14, box=3.5,
                        mc_samples=20_000, sweep=(), mesh_n=60, progress=False,
                        write_figures=False, particle=standin_particle(), log=lines.append,
-                       flow=6)
+                       stages={"flow": page.stage(6)})
     fl = res["flow"]
     saved = json.loads((tmp_path / "pall" / "results.json").read_text())["flow"]
     assert saved["k_D2"] == fl["k_D2"] and fl["resolution"] == 6.0
@@ -296,10 +297,19 @@ def test_page_pipeline_with_flow_adds_k_and_ergun(tmp_path):
     assert "dP/L / Ergun viscous term" in table
 
 
-def test_page_pipeline_refuses_a_flow_resolution_off_the_box(tmp_path):
-    from peclet.packing import pipeline
+def test_page_flow_stage_refuses_a_resolution_off_the_box(tmp_path):
+    from peclet.flow.page import check_resolution
     with pytest.raises(PecletArgumentError, match="flow"):
-        pipeline.run(out=str(tmp_path / "p"), rings=6, steps_scale=0.14, flow=7.3)
+        check_resolution(7.3, 3.5)
+    assert check_resolution(8, 3.5) == 8.0
+
+
+@pytest.mark.parametrize("stages", [[("flow", print)], {"flow": 3}, {1: print},
+                                    {"timing": print}])
+def test_page_pipeline_refuses_bad_stages_before_any_work(tmp_path, stages):
+    from peclet.packing import pipeline
+    with pytest.raises(PecletArgumentError, match="stages"):
+        pipeline.run(out=str(tmp_path / "p"), rings=6, steps_scale=0.14, stages=stages)
     assert not (tmp_path / "p").exists()
 
 

@@ -16,6 +16,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
+from peclet.core.outputs import MANIFEST
 from peclet.packing.freeze import load_pack
 
 FIGS = ("ring", "kinetic_energy", "pack", "orientation", "voidage_sweep")
@@ -65,8 +66,11 @@ def reduced_run(tmp_path_factory):
     from peclet.packing import pipeline
 
     out = tmp_path_factory.mktemp("pall")
-    # an earlier run's figure that this run does not write, and a file that is not ours
-    (out / "pour.gif").write_bytes(b"GIF89a stale")
+    # an earlier run's figure that this run does not write (recorded in the manifest as an
+    # earlier run records it), and a file that is not ours
+    from peclet.core.outputs import recording
+    with recording(out, ["pour.gif"]):
+        (out / "pour.gif").write_bytes(b"GIF89a stale")
     (out / "notes.txt").write_text("mine")
     lines = []
     # 6 rings from y <= 2.85 land in 0.14 of the page's steps (check_run's landing rule)
@@ -81,7 +85,7 @@ def test_every_output_exists_and_is_sane(reduced_run):
     out, res, table = reduced_run
     names = set(os.listdir(out))
     assert {"pall_ring_pack.npz", "results.json"} | {f + ".png" for f in FIGS} <= names
-    assert not [n for n in names if n.startswith(".")]          # no temp file left
+    assert not [n for n in names if n.startswith(".") and n != MANIFEST]   # no temp file left
     # --overwrite cleared the earlier run's files (no stale pour.gif beside the new results)
     # and left the user's own file alone
     assert "pour.gif" not in names and (out / "notes.txt").read_text() == "mine"

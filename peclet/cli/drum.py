@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import os
 
-from peclet.core.files import check_output_dir
+from peclet.core.outputs import check_output_dir, recording
 from peclet.core.validation import PecletArgumentError, check_int
 
 from .options import number, threads_option
@@ -157,9 +157,10 @@ def run(args):
         drum.check_room("--fill", "--length")
     except PecletArgumentError as exc:
         raise _element_error(exc, args.element) from None
-    res = run_drum(spec, out, progress=not args.quiet, figures=not args.no_figures,
-                   threads=threads, previous=previous, checkpoint_every=every,
-                   keep_checkpoint=args.keep_checkpoint)
+    with recording(out, OUTPUTS):
+        res = run_drum(spec, out, progress=not args.quiet, figures=not args.no_figures,
+                       threads=threads, previous=previous, checkpoint_every=every,
+                       keep_checkpoint=args.keep_checkpoint)
     print(table(res))
     return 0
 
@@ -181,10 +182,11 @@ def _resume(args):
     out, previous = check_output_dir(args.out or os.path.dirname(cdir), dr.OUTPUTS,
                                      args.overwrite, "--out", dirs=dr.OUTPUT_DIRS,
                                      keep=(cdir,))
-    res = dr.resume_drum(cdir, out, progress=not args.quiet, figures=not args.no_figures,
-                         threads=threads, previous=previous, checkpoint_every=every,
-                         keep_checkpoint=args.keep_checkpoint, names=dict(FLAGS,
-                                                                           resume="--resume"))
+    with recording(out, dr.OUTPUTS):
+        res = dr.resume_drum(cdir, out, progress=not args.quiet,
+                             figures=not args.no_figures, threads=threads, previous=previous,
+                             checkpoint_every=every, keep_checkpoint=args.keep_checkpoint,
+                             names=dict(FLAGS, resume="--resume"))
     print(table(res))
     return 0
 

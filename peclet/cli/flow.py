@@ -139,7 +139,8 @@ def _reason(message):
 def run(args):
     import numpy as np
 
-    from peclet.core.files import check_output_dir, clear_outputs, write_json
+    from peclet.core.files import write_json
+    from peclet.core.outputs import check_output_dir, clear_outputs, recording
     from peclet.flow import output
     from peclet.flow.permeability import ThinWallWarning, permeability, richardson
     from peclet.packing.freeze import load_pack
@@ -195,16 +196,16 @@ def run(args):
     if len(res) >= 2:
         study = richardson([1.0 / r for r in res], [s["k_D2"] for s in rows])
     finest = runs[-1]
-    clear_outputs(out, previous)
-    os.makedirs(out, exist_ok=True)
-    output.write_vti(os.path.join(out, "velocity.vti"), finest.flow)
-    output.write_vtu(os.path.join(out, "velocity.vtu"), finest.flow)
-    output.slice_figure(os.path.join(out, "slice.png"), finest.flow,
-                        plane="xy" if args.axis != "z" else "yz",
-                        title=f"|u| at D/{res[-1]:g}, mid-z plane (lattice units)")
-    write_json(os.path.join(out, "results.json"),
-               {"pack": os.path.abspath(args.pack), "runs": rows, "richardson": study,
-                "elements": pack.n, "drag_finest": np.asarray(finest.drag).tolist()})
+    with recording(out, OUTPUTS):
+        clear_outputs(out, previous)
+        output.write_vti(os.path.join(out, "velocity.vti"), finest.flow)
+        output.write_vtu(os.path.join(out, "velocity.vtu"), finest.flow)
+        output.slice_figure(os.path.join(out, "slice.png"), finest.flow,
+                            plane="xy" if args.axis != "z" else "yz",
+                            title=f"|u| at D/{res[-1]:g}, mid-z plane (lattice units)")
+        write_json(os.path.join(out, "results.json"),
+                   {"pack": os.path.abspath(args.pack), "runs": rows, "richardson": study,
+                    "elements": pack.n, "drag_finest": np.asarray(finest.drag).tolist()})
     print(table(rows, study))
     print(f"\nwrote results.json, velocity.vti, velocity.vtu and slice.png in {out}")
     return 0

@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import shutil
 import sys
 
-from peclet.core.files import check_output_dir, clear_outputs
+from peclet.core.outputs import check_output_dir, clear_outputs, recording
 from peclet.core.validation import PecletArgumentError, check_float, check_int
 
 from .options import add_bed_options
@@ -228,13 +227,17 @@ def run(args):
         out, previous = _check_out(args.out or base, args.overwrite, resuming_from=cdir)
         try:
             api._check_run_args(1, 0, threads, not args.quiet, None, None, None)
-            res = api.resume(cdir, progress=not args.quiet, threads=threads,
-                             checkpoint_every=every)
         except PecletArgumentError as exc:
             raise _renamed(exc, "--resume") from None
-        if not _landed(res, out):
-            return 1
-        return _finish(res, out, args, cdir, previous)
+        with recording(out, OUTPUTS):
+            try:
+                res = api.resume(cdir, progress=not args.quiet, threads=threads,
+                                 checkpoint_every=every)
+            except PecletArgumentError as exc:
+                raise _renamed(exc, "--resume") from None
+            if not _landed(res, out):
+                return 1
+            return _finish(res, out, args, cdir, previous)
 
     # ---- every check before the element is built
     count = _num("--count", args.count, int, lo=1)
@@ -284,21 +287,23 @@ def run(args):
         proto = dataclasses.replace(proto, batch=batch, insert_every=every_k, drop=drop)
     _bed_rules(args.element, args.container, count, proto, seed)
     cdir = os.path.join(out, "checkpoint")
-    if args.overwrite and os.path.isdir(cdir):   # the rest is replaced when the run is done
-        shutil.rmtree(cdir)
     from peclet.packing import Material
-    try:
-        res = api.pack(args.element, args.container, count, proto, Material(e, 0.0, mu),
-                       Material(we, 0.0, wmu), seed=seed, threads=threads,
-                       progress=not args.quiet, checkpoint_dir=cdir, checkpoint_every=every)
-    except PecletArgumentError as exc:
-        flag = {"container": "--container", "element": "--element"}.get(exc.argument)
-        if flag is None:
-            raise
-        raise _renamed(exc, flag) from None
-    if not _landed(res, out):
-        return 1
-    return _finish(res, out, args, cdir, previous)
+    with recording(out, OUTPUTS):
+        # the old checkpoint goes now; the rest is replaced when the run is done
+        clear_outputs(out, tuple(f for f in previous if f == "checkpoint"))
+        try:
+            res = api.pack(args.element, args.container, count, proto, Material(e, 0.0, mu),
+                           Material(we, 0.0, wmu), seed=seed, threads=threads,
+                           progress=not args.quiet, checkpoint_dir=cdir,
+                           checkpoint_every=every)
+        except PecletArgumentError as exc:
+            flag = {"container": "--container", "element": "--element"}.get(exc.argument)
+            if flag is None:
+                raise
+            raise _renamed(exc, flag) from None
+        if not _landed(res, out):
+            return 1
+        return _finish(res, out, args, cdir, previous)
 
 
 def _grow(args, count, seed, mu, e, threads):
@@ -328,7 +333,8 @@ def _grow(args, count, seed, mu, e, threads):
     out, previous = check_output_dir(args.out or "pack_results", growth.OUTPUTS,
                                      args.overwrite, "--out")
     res = growth.grow(spec, progress=not args.quiet, threads=threads)
-    growth.write_outputs(res, out, previous, figures=not args.no_figures)
+    with recording(out, growth.OUTPUTS):
+        growth.write_outputs(res, out, previous, figures=not args.no_figures)
     print(growth.table(res))
     return 0
 
@@ -358,8 +364,9 @@ def _finish(res, out, args, cdir, previous):
             raise
         raise _renamed(exc, "--stl-resolution") from None
     bed_report.write_results(os.path.join(out, "results.json"), res, report)
-    if not args.keep_checkpoint and os.path.isdir(cdir):
-        shutil.rmtree(cdir)
+    if not args.keep_checkpoint:
+        from peclet.packing import checkpoint as ckpt
+        ckpt.remove(cdir)
     print(bed_report.table(res, report))
     print(f"\nwrote {os.path.join(out, 'results.json')}, pack.npz and the rest in {out}",
           file=sys.stderr)

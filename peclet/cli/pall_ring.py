@@ -96,8 +96,12 @@ def run(args):
     except BaseException:
         warm.stop(warming)
         raise
+    stages = None
+    if flow is not None:
+        from peclet.flow import page as flow_page
+        stages = {"flow": flow_page.stage(flow)}
     res = pipeline.run(**kw, progress=not args.quiet, write_figures=not args.no_figures,
-                       animation=args.animation, flow=flow)
+                       animation=args.animation, stages=stages)
     print(f"\nwrote {res['results_json']} and the pack, figures beside it", file=sys.stderr)
     return 0
 
@@ -118,10 +122,12 @@ def _checked(args, pipeline, pipeline_checks):
         raise PecletArgumentError("--flow-resolution", "given only with --flow",
                                   args.flow_resolution)
     if args.flow:
+        from peclet.flow.page import check_resolution
+
         from .flow import parse_resolution
-        flow = pipeline.check_flow(parse_resolution(args.flow_resolution or "D/8",
-                                                    "--flow-resolution"),
-                                   kw["box"], "--flow-resolution")
+        flow = check_resolution(parse_resolution(args.flow_resolution or "D/8",
+                                                 "--flow-resolution"),
+                                kw["box"], "--flow-resolution")
     if kw["threads"] is not None:
         pipeline.set_threads(kw["threads"], "--threads")
     return flow, kw

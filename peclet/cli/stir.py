@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from peclet.core.files import check_output_dir
+from peclet.core.outputs import check_output_dir, recording
 
 from .options import number, threads_option
 
@@ -81,8 +81,9 @@ def run(args):
     out, previous = check_output_dir(args.out, OUTPUTS, args.overwrite, "--out",
                                      dirs=OUTPUT_DIRS)
     StirredColumn(spec).check_room("--count")
-    res = run_stir(spec, out, progress=not args.quiet, figures=not args.no_figures,
-                   threads=threads, previous=previous)
+    with recording(out, OUTPUTS):
+        res = run_stir(spec, out, progress=not args.quiet, figures=not args.no_figures,
+                       threads=threads, previous=previous)
     print(table(res))
     return 0
 

@@ -6,6 +6,7 @@ permissions ``open()`` would give (``0o666`` less the umask) instead of mkstemp'
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -16,8 +17,8 @@ import numpy as np
 
 from .validation import PecletArgumentError
 
-__all__ = ["atomic_write", "atomic_directory", "check_writable_path", "check_output_dir",
-           "clear_outputs", "jsonable", "write_json", "write_text"]
+__all__ = ["atomic_write", "atomic_directory", "check_writable_path", "file_sha256",
+           "jsonable", "remove_parts", "write_json", "write_text"]
 
 
 def _umask():
@@ -139,64 +140,27 @@ def atomic_directory(path, fill, prefix=".peclet-tmp-"):
     return True
 
 
-def check_output_dir(out, outputs, overwrite, name="out", dirs=(), keep=()):
-    """Check, before any work, that ``out`` can take a run writing ``outputs`` (names inside
-    it; those in ``dirs`` are directories, the rest files). Returns ``(absolute path,
-    previous)``: ``previous`` the names of an earlier run's outputs present (only possible with
-    ``overwrite``; remove them with :func:`clear_outputs`). Paths in ``keep`` are not counted
-    (e.g. the checkpoint a resumed run reads).
-
-    Refused with :class:`PecletArgumentError` naming ``name``: a non-path, a file, a read-only
-    directory (the mode bits too: root may write anywhere, but a directory made read-only was
-    made so on purpose), an output name present with the wrong type, an earlier run's outputs
-    without ``overwrite``, and a new path under a file or in an unwritable place.
-    """
-    if not isinstance(out, (str, os.PathLike)) or not os.fspath(out):
-        raise PecletArgumentError(name, "a directory path", out)
-    shown = os.fspath(out)
-    p = os.path.abspath(shown)
-    if not os.path.exists(p):
-        check_writable_path(os.path.join(p, "probe"), name)
-        return p, ()
-    if not os.path.isdir(p):
-        raise PecletArgumentError(name, "a directory", shown, "it is a file")
-    if not os.access(p, os.W_OK | os.X_OK) or not os.stat(p).st_mode & 0o222:
-        raise PecletArgumentError(name, "a writable directory", shown, "it is read-only")
-    kept = {os.path.abspath(os.fspath(k)) for k in keep if k is not None}
-    previous = []
-    for f in outputs:
-        q = os.path.join(p, f)
-        if not os.path.lexists(q) or q in kept:
-            continue
-        if os.path.isdir(q) != (f in dirs):
-            kind = "a directory" if os.path.isdir(q) else "a file"
-            raise PecletArgumentError(name, "a directory where the run's outputs can be "
-                                      "written", shown, f"{f} in it is {kind}")
-        previous.append(f)
-    if previous and not overwrite:
-        listed = ", ".join(previous[:4]) + (", ..." if len(previous) > 4 else "")
-        flag = "--overwrite" if name.startswith("--") else "overwrite=True"
-        raise PecletArgumentError(name, "a new or empty directory", shown,
-                                  f"it holds an earlier run's files ({listed}); pass {flag} "
-                                  "to replace them")
-    return p, tuple(previous)
-
-
-def clear_outputs(out, previous):
-    """Remove the earlier run's outputs ``previous`` (names returned by
-    :func:`check_output_dir`) from ``out``; nothing else is touched."""
-    for f in previous:
-        q = os.path.join(out, f)
-        if os.path.isdir(q) and not os.path.islink(q):
-            shutil.rmtree(q)
-        elif os.path.lexists(q):
-            os.remove(q)
+def remove_parts(directory, names=(), prefixes=()):
+    """Remove from ``directory`` the entries a peclet format owns: those named in ``names`` and
+    those whose names start with one of ``prefixes`` (whole, if directories); then the
+    directory itself if that left it empty. Anything else in it stays, and so does it.
+    A missing ``directory`` is fine."""
+    d = os.fspath(directory)
+    if not os.path.isdir(d):
+        return
+    for entry in os.listdir(d):
+        if entry in names or entry.startswith(tuple(prefixes)):
+            q = os.path.join(d, entry)
+            if os.path.isdir(q) and not os.path.islink(q):
+                shutil.rmtree(q)
+            else:
+                os.remove(q)
+    if not os.listdir(d):
+        os.rmdir(d)
 
 
 def file_sha256(path):
     """The SHA-256 hex digest of the file at ``path`` (read in 1 MiB blocks)."""
-    import hashlib
-
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):

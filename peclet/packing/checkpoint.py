@@ -30,10 +30,11 @@ import uuid
 
 import numpy as np
 
-from peclet.core.files import atomic_directory, atomic_write, file_sha256, write_json
+from peclet.core.files import (atomic_directory, atomic_write, file_sha256, remove_parts,
+                               write_json)
 from peclet.core.validation import PecletArgumentError
 
-__all__ = ["POINTER", "is_checkpoint", "init", "write", "read"]
+__all__ = ["POINTER", "is_checkpoint", "init", "write", "read", "remove"]
 
 POINTER = "checkpoint.json"
 _KIND = "peclet pack checkpoint"
@@ -51,6 +52,13 @@ def is_checkpoint(path):
     """Whether ``path`` is a directory holding a pack checkpoint's pointer and spec."""
     p = os.fspath(path)
     return os.path.isfile(os.path.join(p, POINTER)) and os.path.isfile(os.path.join(p, "spec.json"))
+
+
+def remove(path):
+    """Remove the checkpoint at ``path``: its own parts only (a file of the user's kept in the
+    same directory stays, and with it the directory)."""
+    remove_parts(path, names=(POINTER, "spec.json", "element.npz"),
+                 prefixes=("ckpt-", ".tmp-ckpt-"))
 
 
 def init(path, spec, element):

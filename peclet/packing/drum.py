@@ -90,8 +90,9 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from peclet.core import geom
-from peclet.core.files import (atomic_directory, atomic_write, clear_outputs, file_sha256,
+from peclet.core.files import (atomic_directory, atomic_write, file_sha256, remove_parts,
                                write_json)
+from peclet.core.outputs import clear_outputs
 from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
 
 from .series import Phase, grains_mesh, run_phases, write_series
@@ -722,8 +723,8 @@ def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
                                               "coverage", "high")} for s in samples])
     if out is not None:
         _write(out, res, drum, frames, snaps, samples, figures, previous)
-        if cdir is not None and not keep_checkpoint and os.path.isdir(cdir):
-            shutil.rmtree(cdir)
+        if cdir is not None and not keep_checkpoint:
+            remove_parts(cdir, names=(POINTER,), prefixes=("step-", ".tmp-step-"))
     return res
 
 

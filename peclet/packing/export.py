@@ -52,6 +52,7 @@ import csv
 import math
 import numbers
 import os
+import re
 import shutil
 import struct
 import tempfile
@@ -73,6 +74,10 @@ __all__ = ["element_mesh", "export_mesh", "container_mesh", "bed_meshes", "write
            "MAX_BED_TRIANGLES", "BASE_SPACING", "CONTAINER_TRIANGLES"]
 
 CSV_HEADER = ("id", "element", "x", "y", "z", "qx", "qy", "qz", "qw")
+
+#: The names :func:`write_stl_files` writes: the only entries it replaces in an existing
+#: directory.
+_EXPORTED_STL = re.compile(r"[A-Za-z_][A-Za-z0-9_]*_[0-9]+\.stl|container\.stl")
 
 #: The export resolution when none is given: 1000 triangles per element (1000 Pall rings:
 #: STL 50 MB, VTU about 23 MB).
@@ -131,6 +136,7 @@ class _Offset:
     def bake(self, root, origin, spacing, dims, band=None):
         b = None if band is None else band + self.s
         return self.builder.bake(root, origin=origin, spacing=spacing, dims=dims, band=b) + self.s
+
 
 
 def _check_pack(pack):
@@ -532,10 +538,20 @@ def write_stl_files(directory, pack, spacing=None, d_elem=1.0, shrink=0.0, conta
     ``{name}_{i}.stl`` for element i (the pack index, zero-padded to the same width, as in the
     transforms CSV) and ``container.stl`` (with ``container``). Arguments as
     :func:`write_stl`. The directory is filled under a temporary name and renamed into place,
-    replacing an existing one whole (a reader sees the old set or the new one). Returns a
-    dict (path, files (names, sorted), n_triangles, element_triangles, volume, bytes)."""
+    replacing an existing one whole (a reader sees the old set or the new one); an existing
+    one that holds anything but such STL files is refused, naming the entry, before any work.
+    Returns a dict (path, files (names, sorted), n_triangles, element_triangles, volume,
+    bytes)."""
     pack = _check_pack(pack)
     path = _check_directory(directory, "directory")
+    if os.path.isdir(path):
+        for entry in sorted(os.listdir(path)):
+            q = os.path.join(path, entry)
+            if not _EXPORTED_STL.fullmatch(entry) or not os.path.isfile(q) or os.path.islink(q):
+                raise PecletArgumentError(
+                    "directory", "a new directory or one holding only an earlier export's "
+                    "<name>_<i>.stl and container.stl", os.fspath(directory),
+                    f"{entry} in it is not such a file (it would be removed with the old set)")
     if not isinstance(name, str) or not name.isidentifier() or name == "container":
         raise PecletArgumentError("name", "an identifier (letters, digits, _) other than "
                                   "'container'", name)

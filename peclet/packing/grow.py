@@ -274,7 +274,8 @@ def write_outputs(res, out, previous=(), figures=True):
     ``out``, each atomically."""
     import os
 
-    from peclet.core.files import atomic_write, clear_outputs, write_json
+    from peclet.core.files import atomic_write, write_json
+    from peclet.core.outputs import clear_outputs
 
     os.makedirs(out, exist_ok=True)
     clear_outputs(out, previous)

@@ -47,7 +47,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from peclet.core.files import check_output_dir, clear_outputs
+from peclet.core.outputs import check_output_dir, clear_outputs
 from peclet.core.validation import (PecletArgumentError, check_bool, check_float, check_int,
                                      describe_range)
 

@@ -13,12 +13,11 @@ and the index is replaced atomically (:mod:`peclet.core.files`).
 from __future__ import annotations
 
 import os
-import shutil
 from typing import NamedTuple
 
 import numpy as np
 
-from peclet.core.files import atomic_directory, atomic_write
+from peclet.core.files import atomic_directory, atomic_write, remove_parts
 
 __all__ = ["Phase", "run_phases", "write_series", "grains_mesh"]
 
@@ -67,7 +66,8 @@ def run_phases(phases, dt, step, turn, after_step=None, bar=None, start=None):
 def write_series(out, stem, frames, mesh_of):
     """Write ``out/frames/frame_NNNN.vtu`` for each of ``frames`` (``mesh_of(frame)`` returns
     a ``meshio.Mesh``; a frame is a dict with at least ``t``, the time) and ``out/<stem>.pvd``
-    indexing them by time. An earlier run's frames directory is replaced."""
+    indexing them by time. An earlier run's frames (``frame_*``) are replaced; any other file
+    in ``frames/`` stays (the new frames are then written one by one, each atomically)."""
     import meshio
 
     def fill(tmp):
@@ -75,9 +75,13 @@ def write_series(out, stem, frames, mesh_of):
             meshio.write(os.path.join(tmp, f"frame_{i:04d}.vtu"), mesh_of(f), file_format="vtu")
 
     fdir = os.path.join(out, "frames")
+    remove_parts(fdir, prefixes=("frame_",))
     if os.path.isdir(fdir):
-        shutil.rmtree(fdir)
-    atomic_directory(fdir, fill)
+        for i, f in enumerate(frames):
+            atomic_write(os.path.join(fdir, f"frame_{i:04d}.vtu"),
+                         lambda tmp, f=f: meshio.write(tmp, mesh_of(f), file_format="vtu"))
+    else:
+        atomic_directory(fdir, fill)
     rows = "\n".join(f'    <DataSet timestep="{f["t"]:.9g}" part="0" '
                      f'file="frames/frame_{i:04d}.vtu"/>' for i, f in enumerate(frames))
     text = ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" '

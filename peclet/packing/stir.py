@@ -345,7 +345,7 @@ def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous
 
 
 def _write(out, res, col, frames, figures, previous):
-    from peclet.core.files import clear_outputs
+    from peclet.core.outputs import clear_outputs
 
     os.makedirs(out, exist_ok=True)
     clear_outputs(out, previous)
