@@ -154,7 +154,8 @@ def run(args):
     out, previous = check_output_dir(out, OUTPUTS, args.overwrite, "--out", dirs=OUTPUT_DIRS)
     try:
         drum = Drum(spec)
-        drum.check_room("--fill", "--length")
+        speed = ("--rpm", args.rpm) if args.rpm is not None else ("--froude", args.froude)
+        drum.check_room("--fill", "--length", *speed)
     except PecletArgumentError as exc:
         raise _element_error(exc, args.element) from None
     with recording(out, OUTPUTS):

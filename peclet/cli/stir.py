@@ -80,7 +80,7 @@ def run(args):
     threads = threads_option(args.threads)
     out, previous = check_output_dir(args.out, OUTPUTS, args.overwrite, "--out",
                                      dirs=OUTPUT_DIRS)
-    StirredColumn(spec).check_room("--count")
+    StirredColumn(spec).check_room("--count", "--omega")
     with recording(out, OUTPUTS):
         res = run_stir(spec, out, progress=not args.quiet, figures=not args.no_figures,
                        threads=threads, previous=previous)

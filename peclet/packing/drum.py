@@ -95,7 +95,7 @@ from peclet.core.files import (atomic_directory, atomic_write, file_sha256, remo
 from peclet.core.outputs import clear_outputs
 from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
 
-from .series import Phase, grains_mesh, run_phases, write_series
+from .series import Phase, check_work, grains_mesh, run_phases, write_series
 
 __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "G", "froude_of_rpm",
            "rpm_of_froude", "run_drum", "resume_drum", "checkpoint_dir", "read_checkpoint",
@@ -241,9 +241,9 @@ def _grains(spec):
         v = float(np.mean(vols))
         return dict(register=reg, radii=np.array(radii), r_b=max(radii), volume=v, envelope=v,
                     mass=np.array(vols), inv_inertia=np.array(inv_i), d=1.0, name="sphere")
-    from .api import _resolve_element, element_model
+    from .api import resolve_element, element_model
 
-    m = element_model(_resolve_element(spec.element))
+    m = element_model(resolve_element(spec.element))
     d = float(m.d)
     env = m.envelope_volume if np.isfinite(m.envelope_volume) else m.volume
     return dict(register=lambda sim: [m.register(sim)], radii=np.array([m.bounding_radius / d]),
@@ -333,9 +333,14 @@ class Drum:
         self.wall = None
 
     # ------------------------------------------------------------------ setup
-    def check_room(self, name="fill", length_name="length"):
-        """Refuse (before any work) a drum shorter than a grain and a fill its start lattice
-        cannot hold."""
+    def check_room(self, name="fill", length_name="length", speed_name="froude",
+                   speed_given=None):
+        """Refuse (before any work) a drum shorter than a grain, a fill its start lattice
+        cannot hold, and a speed so slow the run's turning steps cannot finish
+        (:func:`~peclet.packing.series.check_work`; the error names ``speed_name`` and shows
+        ``speed_given``, default the Froude number)."""
+        check_work(self.schedule(), self.count, speed_name,
+                   self.spec.froude if speed_given is None else speed_given)
         if self.spec.ends == "caps" and self.spec.length < 2.0 * self.grains["r_b"] + 0.05:
             raise PecletArgumentError(length_name, f"at least a grain's bounding diameter "
                                       f"+ 0.05 D ({2.0 * self.grains['r_b'] + 0.05:.3g} D)",

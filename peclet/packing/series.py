@@ -18,8 +18,18 @@ from typing import NamedTuple
 import numpy as np
 
 from peclet.core.files import atomic_directory, atomic_write, remove_parts
+from peclet.core.validation import PecletArgumentError
 
-__all__ = ["Phase", "run_phases", "write_series", "grains_mesh"]
+__all__ = ["Phase", "run_phases", "write_series", "grains_mesh", "check_work",
+           "GRAIN_STEP_SECONDS", "MAX_RUN_SECONDS"]
+
+#: The cost of one grain through one step on one core, in seconds, used to estimate a run's
+#: time before it starts: peclet's engines run about 1e6 sphere-steps/s on one core here
+#: (benchmarks/bench_hertz.py: 1.05e6), composed grains slower, so this errs short.
+GRAIN_STEP_SECONDS = 1e-6
+
+#: Runs estimated longer than this (7 days on one core) are refused before they start.
+MAX_RUN_SECONDS = 7 * 86400.0
 
 
 class Phase(NamedTuple):
@@ -27,6 +37,22 @@ class Phase(NamedTuple):
     name: str
     omega: float
     steps: int
+
+
+def check_work(phases, grains, name, value):
+    """Refuse (PecletArgumentError naming ``name``, whose value is ``value``) a run of
+    ``phases`` over ``grains`` grains whose estimated time (:data:`GRAIN_STEP_SECONDS` a
+    grain-step) exceeds :data:`MAX_RUN_SECONDS`, stating the steps and the estimate. A run
+    with a wall turning at 1e-12 rad/time needs ~1e12 steps a revolution: refused at once
+    instead of a progress bar frozen at step 1."""
+    steps = sum(int(ph.steps) for ph in phases)
+    seconds = float(steps) * max(int(grains), 1) * GRAIN_STEP_SECONDS
+    if seconds > MAX_RUN_SECONDS:
+        raise PecletArgumentError(
+            name, "a value whose run finishes in at most "
+            f"{MAX_RUN_SECONDS / 86400:g} days on one core", value,
+            f"{steps:.3g} steps of {grains} grains, about {seconds / 86400:.3g} days at "
+            f"{GRAIN_STEP_SECONDS:g} s a grain-step")
 
 
 def run_phases(phases, dt, step, turn, after_step=None, bar=None, start=None):

@@ -51,7 +51,7 @@ from peclet.core.files import atomic_write, write_json
 from peclet.core.geom.transforms import quats_to_matrices
 from peclet.core.validation import PecletArgumentError, check_float, check_int
 
-from .series import Phase, grains_mesh, run_phases, write_series
+from .series import Phase, check_work, grains_mesh, run_phases, write_series
 
 __all__ = ["StirSpec", "StirredColumn", "lacey", "run_stir", "OUTPUTS", "OUTPUT_DIRS",
            "PAGE_COUNT"]
@@ -177,7 +177,11 @@ class StirredColumn:
         self.builder, self.column, self.impeller = build_trees(spec)
         self.sim = None
 
-    def check_room(self, name="count"):
+    def check_room(self, name="count", omega_name="omega"):
+        """Refuse (before any work) a count the start lattice cannot hold and an impeller so
+        slow its run cannot finish (:func:`~peclet.packing.series.check_work`)."""
+        check_work(self.schedule(), self.spec.count or PAGE_COUNT, omega_name,
+                   self.spec.omega)
         if _lattice(self.spec, self.builder, self.impeller, np.random.default_rng(0)) is None:
             raise PecletArgumentError(name, "a count the column holds on its start lattice",
                                       self.spec.count)
