@@ -52,7 +52,7 @@ def main(argv=None):
     T0 = time.perf_counter()
     times = {}
     t = time.perf_counter()
-    api.element_model(api._resolve_element("pall_ring"))
+    api.element_model(api.resolve_element("pall_ring"))
     times["build"] = time.perf_counter() - t
     t = time.perf_counter()
     res = pack("pall_ring", f"column:{a.n:g}", count=a.count, protocol=RAIN,

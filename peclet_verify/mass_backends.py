@@ -35,6 +35,7 @@ import numpy as np
 
 from .family_child import FamilyChild, load_factory
 
+# names in _MOVED resolve through the module __getattr__ below, which ruff cannot see
 __all__ = ["MassBackend", "PecletMassBackend", "SubprocessMassBackend", "check_mass_backend",
            "load_mass_backend", "closed_form_world", "mass_properties_certificate",
            "MASS_KINDS", "mass_child_command", "wheel_mass_child_command"]

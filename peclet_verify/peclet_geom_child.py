@@ -32,7 +32,7 @@ class UpstreamGeom:
         from peclet import geom
         self.geom = geom
 
-    def _build(self, ni, nr, root):
+    def build(self, ni, nr, root):
         b = self.geom.SceneBuilder()
         idx = {}
         for i in range(int(root) + 1):
@@ -50,12 +50,12 @@ class UpstreamGeom:
         return b, idx[int(root)]
 
     def evaluate(self, ni, nr, root, points):
-        b, r = self._build(ni, nr, root)
+        b, r = self.build(ni, nr, root)
         return np.asarray(b.eval_root(r, np.ascontiguousarray(points, dtype=np.float64)),
                           dtype=np.float64)
 
     def evaluate_grad(self, ni, nr, root, points):
-        b, r = self._build(ni, nr, root)
+        b, r = self.build(ni, nr, root)
         phi, g = b.eval_root_grad(r, np.ascontiguousarray(points, dtype=np.float64))
         return np.asarray(phi, np.float64), np.asarray(g, np.float64)
 

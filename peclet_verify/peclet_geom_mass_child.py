@@ -40,7 +40,7 @@ class WheelMass:
         self.geom = UpstreamGeom()
 
     def mass_properties(self, node_ints, node_reals, root, lo, hi, resolution):
-        b, r = self.geom._build(node_ints, node_reals, root)
+        b, r = self.geom.build(node_ints, node_reals, root)
         p = b.body_properties(r, [float(v) for v in lo], [float(v) for v in hi],
                               n=int(resolution))
         return (float(p["volume"]), np.asarray(p["com"], np.float64),

@@ -38,7 +38,7 @@ def test_parse_element_forms(value, kind, params):
     # the canonical text parses back to the same thing, and is stable
     text = E.element_text(k, p)
     assert E.parse_element(text) == (k, p) and E.element_text(*E.parse_element(text)) == text
-    el = api._resolve_element(value)
+    el = api.resolve_element(value)
     assert el.name == kind and all(el.params[n] == v for n, v in p.items())
 
 

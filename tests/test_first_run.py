@@ -50,7 +50,7 @@ def test_resumed_bar_starts_at_its_step():
 
 def test_cold_cache_is_detected_in_a_fresh_cache_dir(tmp_path):
     """With an empty NUMBA_CACHE_DIR the step's kernels are not cached: the note is printed."""
-    code = ("from peclet.packing.api import compile_note\n"
+    code = ("from peclet.packing.progress import compile_note\n"
             "from peclet.dem.simulation import step_kernels_cached\n"
             "print(step_kernels_cached()); print(compile_note() is not None)\n")
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
@@ -64,7 +64,7 @@ def test_warm_process_needs_no_note():
 
     from peclet.dem import Simulation
     from peclet.dem.simulation import step_kernels_cached
-    from peclet.packing.api import compile_note
+    from peclet.packing.progress import compile_note
 
     sim = Simulation(2)
     sid = sim.add_sphere_shape(0.5)

@@ -192,14 +192,14 @@ def test_resume_refuses_what_is_not_a_checkpoint(tmp_path, monkeypatch):
 def test_user_elements_and_their_diameter(tmp_path):
     b = geom.SceneBuilder()
     root = b.add_leaf("sphere", [0.8])
-    el = api._resolve_element((b, root))
-    assert api._diameter(el) == pytest.approx(1.6)
+    el = api.resolve_element((b, root))
+    assert api.element_diameter(el) == pytest.approx(1.6)
     ni, nr, _, _ = b.encode()
     np.savez(tmp_path / "t.npz", node_ints=ni, node_reals=nr, root=root)
-    el2 = api._resolve_element(str(tmp_path / "t.npz"))
+    el2 = api.resolve_element(str(tmp_path / "t.npz"))
     assert np.array_equal(el2.builder.encode()[1], nr)
-    assert api._diameter(api._resolve_element("pall_ring")) == 1.0
-    assert api._diameter(api._resolve_element("berl_saddle")) == 1.0
+    assert api.element_diameter(api.resolve_element("pall_ring")) == 1.0
+    assert api.element_diameter(api.resolve_element("berl_saddle")) == 1.0
     # container sizes are in element diameters
     c = Container.column(4).bound(1.6)
     assert c.radius == pytest.approx(3.2)

@@ -1,7 +1,6 @@
 """The DEM family of the certifier: scenarios, backends (in process, child process), the
 options and hooks, and the planted DEM engines, each failing exactly its certificate in a real
 ``pytest --peclet-certify`` run."""
-import json
 import os
 import subprocess
 import sys

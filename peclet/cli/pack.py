@@ -157,8 +157,8 @@ def _bed_rules(element, container, count, proto, seed):
     from peclet.packing import api
     from peclet.packing.protocols import Body
 
-    el = api._resolve_element(element)
-    d = api._diameter(el)
+    el = api.resolve_element(element)
+    d = api.element_diameter(el)
     cont = api.parse_container(container).bound(d)
     c0, r0, _ = el.builder.node_bound(el.root)
     ctx = dict(container=cont, body=Body(-1, 1.0, np.ones(3), float(np.linalg.norm(c0) + r0),
@@ -226,7 +226,7 @@ def run(args):
             if os.path.basename(os.path.abspath(cdir)) == "checkpoint" else cdir
         out, previous = _check_out(args.out or base, args.overwrite, resuming_from=cdir)
         try:
-            api._check_run_args(1, 0, threads, not args.quiet, None, None, None)
+            api.check_run_args(1, 0, threads, not args.quiet, None, None, None)
         except PecletArgumentError as exc:
             raise _renamed(exc, "--resume") from None
         with recording(out, OUTPUTS):
@@ -242,7 +242,7 @@ def run(args):
     # ---- every check before the element is built
     count = _num("--count", args.count, int, lo=1)
     try:
-        api._check_run_args(count, 0, None, True, None, None, None, name="--count")
+        api.check_run_args(count, 0, None, True, None, None, None, name="--count")
     except PecletArgumentError as exc:
         raise _renamed(exc, "--count") from None
     if not args.no_figures:      # the whole bed's export size, before the run
@@ -269,7 +269,7 @@ def run(args):
     if isinstance(args.element, str) and args.element.endswith(".npz"):
         _missing_file("--element", args.element, "a flat-encoding .npz (node_ints, "
                       "node_reals, root)")
-    for flag, value, parse in (("--element", args.element, api._resolve_element),
+    for flag, value, parse in (("--element", args.element, api.resolve_element),
                                ("--container", args.container, api.parse_container)):
         try:
             parse(value)
@@ -325,7 +325,7 @@ def _grow(args, count, seed, mu, e, threads):
                                   args.element)
     from peclet.packing import api
     try:
-        api._resolve_element(args.element)
+        api.resolve_element(args.element)
     except PecletArgumentError as exc:
         raise _renamed(exc, "--element") from None
     spec = growth.GrowSpec(element=args.element, count=count, rate=rate, mu=mu, e_n=e,

@@ -31,8 +31,9 @@ def is_cached(dispatcher):
     try:
         if dispatcher.signatures:
             return True
-        cache = dispatcher._cache
-        return len(cache._cache_file._load_index()) > 0
+        # Numba's own cache objects: no public call says whether a kernel is cached
+        cache = dispatcher._cache                               # noqa: SLF001
+        return len(cache._cache_file._load_index()) > 0         # noqa: SLF001
     except Exception:          # an internal interface that moved: say "unknown"
         return None
 
@@ -56,7 +57,7 @@ def _cache_dir(directory):
     py = sorted(n for n in os.listdir(directory) if n.endswith(".py"))
     if not py:
         return None
-    for cls in CacheImpl._locator_classes:
+    for cls in CacheImpl._locator_classes:      # noqa: SLF001 (Numba's, see the docstring)
         loc = cls.from_function(anchor, os.path.join(directory, py[0]))
         if loc is not None:
             return loc.get_cache_path()

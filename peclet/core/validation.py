@@ -17,7 +17,7 @@ import numbers
 import numpy as np
 
 __all__ = ["PecletArgumentError", "check_bool", "check_int", "check_float", "check_array",
-           "check_choice", "describe_range"]
+           "check_choice", "describe_range", "as_points"]
 
 
 class PecletArgumentError(ValueError):
@@ -128,3 +128,13 @@ def check_array(name, value, shape, dtype=np.float64, finite=True):
     if finite and np.dtype(dtype).kind == "f" and not np.all(np.isfinite(a)):
         raise PecletArgumentError(name, what + " of finite numbers (no NaN or inf)", value)
     return a
+
+
+def as_points(points, name="points") -> np.ndarray:
+    """``points`` as a finite (N, 3) float64 C-contiguous array, else a PecletArgumentError."""
+    arr = check_array(name, points, (None, 3), finite=False)
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.argwhere(~np.isfinite(arr).all(axis=1))[0, 0])
+        raise PecletArgumentError(name, "an array of shape (N, 3) of finite numbers", points,
+                                  f"row {bad} is {arr[bad].tolist()}")
+    return arr

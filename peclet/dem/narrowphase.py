@@ -353,8 +353,8 @@ def _direction(t, d, old_t, prev, cur, xa, Ra, s, so, geo, zero, tree, nsign, fb
 
 
 @njit(cache=True, nogil=True)
-def _workers(first, step, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots, delta,
-             old, prev, cur, scratch):
+def narrow_workers(first, step, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots,
+                   delta, old, prev, cur, scratch):
     """Workers ``first``, ``first + step``, ... of ``nw`` (a share of
     :func:`peclet.core.shares.run_shares`). Worker ``worker`` takes the chunks worker,
     worker + nw, ... of ``size`` tasks (interleaved, so that the workers' loads even out);
@@ -512,8 +512,8 @@ def narrow_phase(tasks, pos, rot, shape_of, geo, tol2, touch, chunks, slots, del
     nw = WORKERS if chunks > 1 else 1
     cur.fill[nw:] = 0
     size = max(TASK_CHUNK, tasks.a.shape[0] // (WORKERS * CHUNKS_PER_WORKER))
-    run_shares(_workers, nw, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots, delta,
-               old, prev, cur, scratch)
+    run_shares(narrow_workers, nw, nw, size, tasks, pos, rot, shape_of, geo, tol2, touch, slots,
+               delta, old, prev, cur, scratch)
 
 
 @njit(cache=True)

@@ -60,7 +60,7 @@ def _as_bounds(bounds):
         lo, hi = bounds
     except (TypeError, ValueError):
         raise ValueError(f"bounds must be (lo, hi) with 3 numbers each, got {bounds!r}") from None
-    return quadrature._check_box(lo, hi)
+    return quadrature.check_box(lo, hi)
 
 
 def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points=1200,

@@ -146,7 +146,7 @@ def _tree(node_ints, node_reals, root):
     # a validated copy of the flat tree and its root
     b = SceneBuilder.decode(node_ints, node_reals)
     root = check_int("root", root, 0, b.num_nodes() - 1)
-    ni, nr = b._node_arrays()
+    ni, nr = b.node_arrays()
     return b, np.asarray(ni), np.asarray(nr, dtype=np.float64), root
 
 

@@ -68,7 +68,7 @@ def step_kernels_cached():
     minutes on 2 cores), None that it cannot be told."""
     from peclet.core.jitcache import all_cached
 
-    return all_cached([broadphase.find_pairs, narrowphase._workers,
+    return all_cached([broadphase.find_pairs, narrowphase.narrow_workers,
                        solver.solve_velocities, solver.project_positions])
 
 

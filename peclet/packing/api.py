@@ -34,7 +34,7 @@ from .elements import ELEMENTS, Element, parse_element
 from .freeze import Pack
 from .material import Material, as_material
 from .pipeline_checks import set_threads
-from .progress import Progress, ms_per_step
+from .progress import Progress, compile_note, ms_per_step
 from .protocols import G, Body, RunState, drive, insert_bodies, new_simulation, parse_protocol
 
 __all__ = ["pack", "resume", "PackResult", "ElementModel", "element_model", "ITERATIONS",
@@ -139,7 +139,7 @@ def _fibonacci_sphere(n, r):
     return r * np.column_stack([s * np.cos(t), y, s * np.sin(t)])
 
 
-def _diameter(el: Element):
+def element_diameter(el: Element):
     """The element's D: its envelope's outer diameter (rings, cylinders, spheres) or the
     torus centre-line diameter of a saddle (2 R); a user's tree: its bounding ball's."""
     p = el.params
@@ -149,7 +149,7 @@ def _diameter(el: Element):
     return 2.0 * float(el.builder.node_bound(el.root)[1])
 
 
-def _resolve_element(value):
+def resolve_element(value):
     """An Element from the accepted forms (cheap: builds the tree only).
 
     A library element takes its construction parameters as ``"NAME:KEY=V,KEY=V"`` (the
@@ -231,7 +231,7 @@ def element_model(el: Element, build=None):
     key = (el.name, int(el.root), ni.tobytes(), nr.tobytes(), tuple(sorted(kw.items())))
     if key in _MODELS:
         return _MODELS[key]
-    d = _diameter(el)
+    d = element_diameter(el)
     if el.name == "sphere":
         r = float(el.params["radius"])
         vol = 4.0 / 3.0 * math.pi * r ** 3
@@ -329,7 +329,7 @@ def _set_threads(threads):
     return None if threads is None else set_threads(threads)
 
 
-def _check_run_args(count, seed, threads, progress, max_steps, checkpoint_dir,
+def check_run_args(count, seed, threads, progress, max_steps, checkpoint_dir,
                     checkpoint_every, name="count"):
     cap, why = count_cap()
     count = check_int(name, count, 1)
@@ -377,7 +377,7 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
     given; those not given follow the thinnest wall (:func:`element_model`).
     Returns a :class:`PackResult`.
     """
-    count, seed, max_steps, every = _check_run_args(count, seed, threads, progress, max_steps,
+    count, seed, max_steps, every = check_run_args(count, seed, threads, progress, max_steps,
                                                     checkpoint_dir, checkpoint_every)
     proto = parse_protocol(protocol)
     cont = parse_container(container)
@@ -388,10 +388,10 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
         raise PecletArgumentError("element", ELEMENT_FORMS, element,
                                   "it is a directory" if os.path.isdir(element)
                                   else "it does not exist")
-    el = _resolve_element(element)
+    el = resolve_element(element)
     if build is not None and not isinstance(build, dict):
         raise PecletArgumentError("build", "a dict of scene_particle.build knobs", build)
-    cont = cont.bound(_diameter(el))
+    cont = cont.bound(element_diameter(el))
     # before measuring the element, with its authoring bounding ball for r_b: rain, the
     # enclosure of the insertion zone; page, the element fits and the start cloud's rules
     # (both run again on the measured element)
@@ -421,7 +421,7 @@ def resume(checkpoint_dir, progress=True, max_steps=None, threads=None, checkpoi
             and not os.path.exists(checkpoint_dir)
         raise PecletArgumentError("checkpoint_dir", "a peclet pack checkpoint directory",
                                   checkpoint_dir, "it does not exist" if missing else "")
-    _, _, max_steps, every = _check_run_args(1, 0, threads, progress, max_steps, None, None)
+    _, _, max_steps, every = check_run_args(1, 0, threads, progress, max_steps, None, None)
     if checkpoint_every is not None:
         every = check_int("checkpoint_every", checkpoint_every, 1)
     spec, arrays, sim, state, ke = ckpt.read(checkpoint_dir)
@@ -435,17 +435,6 @@ def resume(checkpoint_dir, progress=True, max_steps=None, threads=None, checkpoi
     resumed = None if sim is None else (sim, RunState.from_json(state, ke))
     return _run(model, cont, proto, mat, wmat, spec, int(spec["seed"]), progress, max_steps,
                 checkpoint_dir, every, resumed)
-
-
-def compile_note():
-    """The line a run prints before its first step when the DEM kernels are not in Numba's
-    cache yet (else None)."""
-    from peclet.dem.simulation import step_kernels_cached
-
-    if step_kernels_cached() is False:
-        return ("compiling the DEM kernels (first run only: about 2 minutes on 2 cores; Numba "
-                "caches them for every later run)")
-    return None
 
 
 def _run(model, cont, proto, mat, wmat, spec, seed, progress, max_steps, cdir, every, resumed):

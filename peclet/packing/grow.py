@@ -185,9 +185,9 @@ def grow(spec, progress=True, threads=None):
         from .pipeline_checks import set_threads
         set_threads(threads)
     spec = spec.checked()
-    from .api import _resolve_element, element_model
+    from .api import resolve_element, element_model
 
-    model = element_model(_resolve_element(spec.element))
+    model = element_model(resolve_element(spec.element))
     d = model.d
     rng = np.random.default_rng(spec.seed)
     sim = Simulation(spec.count)

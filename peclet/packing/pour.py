@@ -21,7 +21,7 @@ from peclet.core.validation import check_float, check_int
 
 from .containers import Container
 from .material import as_material
-from .progress import Progress
+from .progress import Progress, compile_note
 from .protocols import Body, PageProtocol, RunState, drive, insert_bodies, new_simulation
 from .protocols import start_cloud as _start_cloud
 
@@ -104,7 +104,6 @@ def pour(particle, n=48, box=3.5, seed=5, protocol=None, material=(0.15, 0.0, 0.
     insert_bodies(sim, body, P0, Q0, np.zeros_like(P0))
 
     res = PourResult(sim, sid, None, None, P0.copy(), protocol=proto)
-    from .api import compile_note
 
     bar = Progress(proto.total_steps, "pall-ring pour ", enabled=progress, note=compile_note())
     dt = proto.dt

@@ -22,7 +22,7 @@ from tqdm import tqdm
 
 from peclet.core.validation import check_bool, check_float, check_int
 
-__all__ = ["Progress", "ms_per_step"]
+__all__ = ["Progress", "ms_per_step", "compile_note"]
 
 #: tqdm's layout with the time left always shown (``remaining``) and the phase label last.
 _FORMAT = "{desc}{percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}, " \
@@ -95,3 +95,14 @@ def ms_per_step(seconds, first_step_seconds, steps):
     if steps > 1:
         return 1e3 * (seconds - first_step_seconds) / (steps - 1)
     return 1e3 * seconds / max(steps, 1)
+
+
+def compile_note():
+    """The line a run prints before its first step when the DEM kernels are not in Numba's
+    cache yet (else None)."""
+    from peclet.dem.simulation import step_kernels_cached
+
+    if step_kernels_cached() is False:
+        return ("compiling the DEM kernels (first run only: about 2 minutes on 2 cores; Numba "
+                "caches them for every later run)")
+    return None

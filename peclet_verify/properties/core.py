@@ -97,18 +97,18 @@ def _fixed_constant_pool():
     """
     try:
         from hypothesis.internal.conjecture import providers
-        original = providers._get_local_constants
+        original = providers._get_local_constants  # noqa: SLF001 -- Hypothesis internal, absent versions handled below
         cache = providers.CONSTANTS_CACHE.cache
         empty = providers.Constants()
     except (ImportError, AttributeError):
         yield
         return
     cache.clear()  # its entries were computed from the process's current pool
-    providers._get_local_constants = lambda: empty
+    providers._get_local_constants = lambda: empty  # noqa: SLF001
     try:
         yield
     finally:
-        providers._get_local_constants = original
+        providers._get_local_constants = original  # noqa: SLF001
         cache.clear()
 
 
@@ -210,7 +210,7 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
     # no explain phase: it re-runs the failing input hundreds of times to annotate Hypothesis's
     # own report, which search never shows (the counterexample is describe(shrunk input))
     # every certificate gets its own example-database key (``run`` has the same source for all)
-    run._hypothesis_internal_add_digest = label.encode()
+    run._hypothesis_internal_add_digest = label.encode()  # noqa: SLF001 -- Hypothesis's per-test database key hook
     test = hypothesis_settings(effective, phases=[p for p in effective.phases
                                                   if p is not Phase.explain])(given(strategy)(run))
     pool = nullcontext()

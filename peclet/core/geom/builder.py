@@ -19,7 +19,8 @@ import math
 
 import numpy as np
 
-from peclet.core.validation import PecletArgumentError, check_array, check_choice, check_float
+from peclet.core.validation import (PecletArgumentError, as_points, check_array, check_choice,
+                                    check_float)
 
 from . import kernels as K
 from .bounds import combine
@@ -33,16 +34,6 @@ from .transforms import as_quaternion, compose, transform_ball
 
 #: Most lattice points one bake may hold (1024^3 values are 8 GiB already).
 MAX_BAKE_POINTS = 1024 ** 3
-
-
-def as_points(points, name="points") -> np.ndarray:
-    """``points`` as a finite (N, 3) float64 C-contiguous array, else a PecletArgumentError."""
-    arr = check_array(name, points, (None, 3), finite=False)
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.argwhere(~np.isfinite(arr).all(axis=1))[0, 0])
-        raise PecletArgumentError(name, "an array of shape (N, 3) of finite numbers", points,
-                                  f"row {bad} is {arr[bad].tolist()}")
-    return arr
 
 
 def as_transform(translation=None, rotation=None, scale=None):
@@ -216,7 +207,7 @@ class SceneBuilder:
         root = self._check_index(root, "root")
         prog = self._programs.get(root)
         if prog is None:
-            ni, nr = self._node_arrays()
+            ni, nr = self.node_arrays()
             prog = compile_root(ni, nr, root)
             self._programs[root] = prog
         return prog
@@ -325,7 +316,7 @@ class SceneBuilder:
         return self._scene_cache[1].evaluate(points, method=method)
 
     # ------------------------------------------------------------------ encoding
-    def _node_arrays(self):
+    def node_arrays(self):
         ni = np.array(self._ints, dtype=np.int32).reshape(-1, NODE_INT_COLS)
         nr = np.array(self._reals, dtype=np.float64).reshape(-1, NODE_REAL_COLS)
         return ni, nr
@@ -338,7 +329,7 @@ class SceneBuilder:
         (params[0:8], t[3], q[4] as x, y, z, w, s). inst_ints rows are (root, 0);
         inst_reals rows are (t[3], q[4], s).
         """
-        ni, nr = self._node_arrays()
+        ni, nr = self.node_arrays()
         ii = np.zeros((len(self._inst_roots), INST_INT_COLS), dtype=np.int32)
         ii[:, INST_ROOT] = self._inst_roots
         ir = np.array(self._inst_reals, dtype=np.float64).reshape(-1, INST_REAL_COLS)

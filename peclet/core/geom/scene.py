@@ -15,10 +15,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from peclet.core.validation import PecletArgumentError, check_array, check_bool, check_choice
+from peclet.core.validation import (PecletArgumentError, as_points, check_array, check_bool,
+                                    check_choice)
 
 from . import kernels as K
-from .builder import as_points
 from .encoding import INST_ROOT, instance_transform
 from .program import concatenate
 from .transforms import quat_to_matrix, transform_ball

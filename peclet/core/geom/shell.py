@@ -16,9 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
-from peclet.core.validation import check_float, check_int
+from peclet.core.validation import as_points, check_float, check_int
 
-from .builder import as_points
 from .mesh import MAX_LATTICE, surface_mesh
 
 #: Probes must satisfy |phi| <= this after projection.

@@ -42,8 +42,7 @@ Modules, in the order of the algorithm: :mod:`.constants` (every tuning constant
 v-level and the u-level), :mod:`.cell_rule` (the cell rule and its error estimate),
 :mod:`.refine` (the octree refinement driver), :mod:`.api` (the public functions).
 """
-from .api import (BodyProperties, _check_box, body_properties, check_box, principal_axes,
-                  principal_frame)
+from .api import BodyProperties, body_properties, check_box, principal_axes, principal_frame
 
 __all__ = ["BodyProperties", "body_properties", "principal_frame", "principal_axes",
            "check_box"]

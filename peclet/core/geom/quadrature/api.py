@@ -58,10 +58,6 @@ def check_box(lo, hi):
     return lo_a, hi_a
 
 
-#: The name peclet.dem.scene_particle used before check_box was public.
-_check_box = check_box
-
-
 def _check_faces(builder, root, lo, hi, m):
     """Raise unless phi >= 0 on an (m+1)^2 sample of every face of the box."""
     u = np.linspace(0.0, 1.0, m + 1)
