@@ -325,7 +325,7 @@ class DroppingContactsSimulation(_PecletPage):
         super().__init__(capacity)
         from peclet.dem.narrowphase import MAX_PER_TASK
         self.buffer = max(1, int(capacity)) * MAX_PER_TASK
-        det = self._sim._detector  # noqa: SLF001 -- a planted fault wraps the engine's detector on purpose
+        det = self._sim.world.detector      # a planted fault wraps the engine's detector
         detect = det.detect
 
         def truncated(*args, **kwargs):

@@ -18,7 +18,6 @@ FUNCTION_LINES = 150
 KERNEL_PARAMS = 12
 
 LARGE_MODULES = {
-    "peclet/dem/simulation.py": 828,
     "peclet/dem/solver.py": 673,
     "peclet/flow/permeability.py": 670,
     "peclet/packing/drum.py": 997,

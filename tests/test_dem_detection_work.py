@@ -90,7 +90,7 @@ def _stir_hash(steps, *, skin=True, wall_grids=True, threads=1, monkeypatch=None
     numba.set_num_threads(threads)
     try:
         spec, col, sim = _column()
-        det = sim._detector
+        det = sim.world.detector
         builds = _count_builds(monkeypatch)
         monkeypatch.setattr(distgrid, "WALL_GRID_MIN_TASKS", 1000 if wall_grids else 10 ** 12)
         for k in range(steps):
@@ -126,13 +126,13 @@ def test_wall_grid_bounds_never_exceed_the_signed_field():
     col.turn(spec.omega)
     for _ in range(5):
         sim.step()
-    geo = sim._geometry()
-    geo.wall_pos[:] = sim._wallmo.pos
-    geo.wall_rot[:] = sim._wallmo.rotations()
-    walled = distgrid.with_wall_grids(geo._replace(), np.asarray(sim._bodies.pos), 1.0) \
-        if len(sim._bodies.pos) * len(geo.wall_op) >= distgrid.WALL_GRID_MIN_TASKS else None
+    geo = sim.world.geometry()
+    geo.wall_pos[:] = sim.world.wall_motion.pos
+    geo.wall_rot[:] = sim.world.wall_motion.rotations()
+    walled = distgrid.with_wall_grids(geo._replace(), np.asarray(sim.world.bodies.pos), 1.0) \
+        if len(sim.world.bodies.pos) * len(geo.wall_op) >= distgrid.WALL_GRID_MIN_TASKS else None
     if walled is None:
-        walled = _forced_grids(geo, np.asarray(sim._bodies.pos))
+        walled = _forced_grids(geo, np.asarray(sim.world.bodies.pos))
     rng = np.random.default_rng(1)
     st = np.empty((64, 16))
     checked = 0
@@ -193,7 +193,7 @@ def test_pair_list_is_rebuilt_when_a_body_leaves_its_build_sphere():
     sim = _new(2)
     _spheres(sim, [(0.0, 0.0, 0.0), (3.0, 0.0, 0.0)], vel=[(0.0, 0.0, 0.0)] * 2)
     assert len(sim.detect_contacts()["body_a"]) == 0
-    assert sim._detector._pairs is not None      # a list was built (and is kept)
+    assert sim.world.detector._pairs is not None      # a list was built (and is kept)
     # teleport body 1 next to body 0: the kept list (no pair) must not be trusted
     sim.set_positions(np.array([[0.0, 0.0, 0.0], [1.01, 0.0, 0.0]]))
     c = sim.detect_contacts()
@@ -220,7 +220,7 @@ def _periodic_rain_hash(steps, skin, threads, monkeypatch):
         wraps = 0
         for _ in range(steps):
             if not skin:
-                sim._detector._pairs = None
+                sim.world.detector._pairs = None
             before = sim.get_positions()[:, 0].copy()
             sim.step(2e-3)
             wraps += int(np.sum(np.abs(sim.get_positions()[:, 0] - before) > 2.0))

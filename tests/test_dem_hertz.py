@@ -300,7 +300,7 @@ def test_save_load_resumes_hertz_run_bitwise(tmp_path):
     assert other.state_hash() == sim.state_hash()
     # and the history mattered: a load with the history dropped ends elsewhere
     third = Simulation.load(path)
-    third._hertz.clear_history()
+    third.world.hertz.clear_history()
     third.step_hertz(60, 1e-4)
     assert third.state_hash() != sim.state_hash()
 

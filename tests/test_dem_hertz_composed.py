@@ -118,7 +118,7 @@ def test_csg_sphere_on_floor_and_against_a_sphere_matches_the_analytic_sphere(pa
     for p in (R, sp):                               # analytic sphere, then the CSG one
         sim = _sim([(p, [0, R + 1e-6, 0], [0, -v, 0], I4, False)], E)
         _floor(sim)
-        m = 1.0 / sim._bodies.inv_mass[0]
+        m = 1.0 / sim.world.bodies.inv_mass[0]
         ref = np.array(_impact(m, R, es, v))
         runs.append(_follow(sim, lambda: sim.get_positions()[0, 1] - R, ref[2]))
         assert sim.get_velocities()[0, 1] == pytest.approx(v, rel=1e-5)     # elastic
@@ -133,7 +133,7 @@ def test_csg_sphere_on_floor_and_against_a_sphere_matches_the_analytic_sphere(pa
         sim = _sim([(pa, [-R - 1e-6, 0, 0], [v, 0, 0], I4, False),
                     (pb, [R + 1e-6, 0, 0], [-v, 0, 0], I4, False)], E)
         sim.set_material_params(1.0, 0.0, 0.0)
-        m = 1.0 / sim._bodies.inv_mass[0]
+        m = 1.0 / sim.world.bodies.inv_mass[0]
         tc = _impact(m / 2, R / 2, es2, 2 * v)[2]
         res.append(_follow(sim, lambda: sim.get_positions()[1, 0] - sim.get_positions()[0, 0]
                            - 2 * R, tc))
@@ -294,11 +294,11 @@ def test_patch_key_and_history_persist_and_resume_bitwise(parts, tmp_path):
     _floor(sim, 0.5, mu)
     sim.set_external_forces([[0.0, 0.0, 0.2 * mu * sp.mass * G]])
     sim.step_hertz(40, 2e-5)
-    keys = sim._hertz.keys.copy()
+    keys = sim.world.hertz.keys.copy()
     assert len(keys) == 2
     for _ in range(5):
         sim.step_hertz(10, 2e-5)
-        assert np.array_equal(sim._hertz.keys, keys)
+        assert np.array_equal(sim.world.hertz.keys, keys)
     xi = sim.hertz_contacts()["tangential_displacement"]
     assert np.all(np.linalg.norm(xi, axis=1) > 0)
     path = tmp_path / "c.npz"
@@ -308,7 +308,7 @@ def test_patch_key_and_history_persist_and_resume_bitwise(parts, tmp_path):
     other.step_hertz(60, 2e-5)
     assert other.state_hash() == sim.state_hash()
     third = Simulation.load(path)
-    third._hertz.clear_history()
+    third.world.hertz.clear_history()
     third.step_hertz(60, 2e-5)
     assert third.state_hash() != sim.state_hash()
 

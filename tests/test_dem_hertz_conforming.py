@@ -93,7 +93,7 @@ def test_box_on_its_face_rests_at_the_flat_punch_overlap(box):
     assert delta == pytest.approx(ref, rel=0.015)
     assert c["depth"][0] == pytest.approx(delta, rel=1e-3)          # uniform overlap
     # the force acts at the face's centre: no tipping
-    assert np.abs(sim._bodies.omega[0]).max() < 1e-6
+    assert np.abs(sim.world.bodies.omega[0]).max() < 1e-6
 
 
 @pytest.mark.heavy

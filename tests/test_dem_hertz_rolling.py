@@ -262,17 +262,17 @@ def test_save_load_mid_roll_resumes_bitwise(tmp_path):
     sim = _roller(0.02, 0.05)
     sim.set_rolling_friction(0.3, 0, 0)           # a pair setting beside the every-pair one
     sim.step_hertz(600, DT)
-    assert np.any(sim._hertz.mr != 0.0)
+    assert np.any(sim.world.hertz.mr != 0.0)
     path = tmp_path / "roll.npz"
     sim.save(path)
     other = Simulation.load(path)
-    assert other._hertz.rolling == sim._hertz.rolling
+    assert other.world.hertz.rolling == sim.world.hertz.rolling
     sim.step_hertz(300, DT)
     other.step_hertz(300, DT)
     assert other.state_hash() == sim.state_hash()
     # the rolling history mattered: a load without it ends elsewhere
     third = Simulation.load(path)
-    third._hertz.mr[:] = 0.0
+    third.world.hertz.mr[:] = 0.0
     third.step_hertz(300, DT)
     assert third.state_hash() != sim.state_hash()
 
@@ -321,7 +321,7 @@ def test_bad_rolling_friction_is_refused_naming_it(args, name):
     assert str(err.value).startswith(f"{name} must be ")
     if name == "mu_r":
         assert "[0, 1]" in str(err.value)          # the accepted range
-    assert sim._hertz.rolling == {}                # nothing half set
+    assert sim.world.hertz.rolling == {}                # nothing half set
 
 
 def test_a_corrupt_rolling_save_is_refused(tmp_path):

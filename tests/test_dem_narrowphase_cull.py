@@ -36,15 +36,15 @@ def _dense_bed(seed=3, n=24, L=3.5):
 def test_culled_contacts_equal_every_probe_evaluated():
     sp, sim = _dense_bed()
     fast = sim.detect_contacts()
-    geo = sim._geometry()
+    geo = sim.world.geometry()
     # no Lipschitz culling, no grid: every probe within the bounding spheres is evaluated
     # and no pruned programs (no lattice: every evaluation runs the whole program)
-    sim._geo = geo._replace(shape_lip=np.zeros_like(geo.shape_lip),
+    sim.world._geo = geo._replace(shape_lip=np.zeros_like(geo.shape_lip),
                             wall_lip=np.zeros_like(geo.wall_lip),
                             shape_grid_dims=np.zeros_like(geo.shape_grid_dims),
                             shape_pdims=np.zeros_like(geo.shape_pdims))
     brute = sim.detect_contacts()
-    sim._geo = geo
+    sim.world._geo = geo
     assert len(fast["depth"]) > 50
     assert {int(b) for b in fast["body_b"]} >= {-1}           # the floor is in it
     assert set(fast) == set(brute)
@@ -56,7 +56,7 @@ def test_grid_bound_never_exceeds_phi_and_is_tight_near_the_surface():
     sp = pall_ring_particle()
     sim = Simulation(1)
     sp.register(sim)
-    s = sim._shapes[0]
+    s = sim.world.shapes[0]
     b = _BUILDERS[id(sp)]
     rng = np.random.default_rng(7)
     h = s.grid_oh[3]

@@ -17,7 +17,7 @@ def _pour(steps, enabled, threads=1, capacity=None):
     numba.set_num_threads(threads)
     try:
         sim = page_pour(pall_ring_particle())
-        reuse = sim._detector.reuse
+        reuse = sim.world.detector.reuse
         reuse.enabled = enabled
         if capacity is not None:
             reuse.capacity = capacity
@@ -58,7 +58,7 @@ def test_replayed_contacts_equal_a_fresh_scan_after_moves_and_shape_changes():
     first = sim.detect_contacts()
     again = sim.detect_contacts()               # replays every listed direction
     _listing_equal(first, again)
-    assert (sim._detector.reuse.prev.count >= 0).sum() > 20
+    assert (sim.world.detector.reuse.prev.count >= 0).sum() > 20
 
     # a body moved by hand a little (within the lists' reach), one a lot, one turned
     pos = np.array(sim.get_positions(), dtype=np.float64)
@@ -69,7 +69,7 @@ def test_replayed_contacts_equal_a_fresh_scan_after_moves_and_shape_changes():
     q[2] = [0.0, 0.0, np.sin(0.3), np.cos(0.3)]
     sim.set_quaternions(q)
     moved = sim.detect_contacts()
-    sim._detector.reuse.reset()
+    sim.world.detector.reuse.reset()
     _listing_equal(moved, sim.detect_contacts())
 
     # a ring given the sphere's shape: its lists (of ring probes) must not be replayed
@@ -77,7 +77,7 @@ def test_replayed_contacts_equal_a_fresh_scan_after_moves_and_shape_changes():
     ids[3] = ids[-1]
     sim.set_shape_ids(ids)
     changed = sim.detect_contacts()
-    sim._detector.reuse.reset()
+    sim.world.detector.reuse.reset()
     _listing_equal(changed, sim.detect_contacts())
 
 
@@ -115,7 +115,7 @@ def test_a_stale_list_would_be_caught():
     after every ring dropped by 0.15, and miss the contacts the drop made."""
     sp, sim = _dense_bed(seed=4)
     sim.detect_contacts()                       # lists made at this pose
-    reuse = sim._detector.reuse
+    reuse = sim.world.detector.reuse
     pos = np.array(sim.get_positions(), dtype=np.float64)
     pos[:, 1] -= 0.15
     sim.set_positions(pos)
@@ -133,7 +133,7 @@ def _tilting_floor(steps, enabled, threads=1):
     numba.set_num_threads(threads)
     try:
         sim = page_pour(pall_ring_particle(), n=16)
-        sim._detector.reuse.enabled = enabled
+        sim.world.detector.reuse.enabled = enabled
         sim.set_wall_velocity(0, angular=[0.0, 0.0, 0.3], center=[1.75, 0.0, 1.75])
         for _ in range(steps):
             sim.step(2e-3)

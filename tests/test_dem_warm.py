@@ -19,7 +19,7 @@ def test_the_tail_compile_adds_no_signature_a_real_step_does_not_have():
     warm.compile_step_kernels("all")                 # real detection: the real signatures
     before = {k: set(d.signatures) for k, d in _dispatchers().items()}
     sim = warm.compile_step_kernels("tail")
-    assert sim._num_contacts == 2                    # the solvers saw the stand-in contacts
+    assert sim.world.num_contacts == 2                    # the solvers saw the stand-in contacts
     after = {k: set(d.signatures) for k, d in _dispatchers().items()}
     new = {k: after[k] - before.get(k, set()) for k in after if after[k] - before.get(k, set())}
     assert not new, f"the stand-in detection compiled signatures a real step does not use: {new}"
@@ -49,7 +49,7 @@ def test_the_hertz_compile_adds_no_signature_a_real_hertz_step_does_not_have():
 def test_the_colored_compile_solves_colour_by_colour_and_restores_the_threshold():
     threshold = solver.COLORED_MIN_CONTACTS
     sim = warm.compile_step_kernels("colored")
-    assert sim._num_contacts >= 1
+    assert sim.world.num_contacts >= 1
     assert solver.solve_velocities_colored.signatures       # the coloured path ran
     assert solver.COLORED_MIN_CONTACTS == threshold == 20000
 

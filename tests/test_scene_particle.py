@@ -44,7 +44,7 @@ def test_build_small_particle():
     sim.add_sphere_shape(0.1)
     sid = sp.register(sim)
     assert sid == 1
-    shape = sim._shapes[sid]
+    shape = sim.world.shapes[sid]
     assert shape.root == sp.home_root and shape.radius == sp.bounding_radius
     assert np.array_equal(shape.shell, sp.shell)
     assert shape.node_ints.tobytes() == sp.node_ints.tobytes()

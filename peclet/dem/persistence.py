@@ -36,6 +36,11 @@ _ROLLING_KEYS = ("hertz_rolling", "hertz_mr")
 #: Present (all three) only in a save of a simulation with sleeping on (peclet/dem/sleep.py):
 #: its threshold and each body's flag and count, so that a sleeping run resumes bitwise.
 _SLEEP_KEYS = ("sleep_params", "sleep_asleep", "sleep_count")
+#: Present (all three, plus the law's history as ``law_h_<name>``) only in a save of a
+#: simulation whose contact law (Simulation.set_contact_law) is not the impulse default: the
+#: law's registry name, its parameters' names and values (peclet.dem.engine).
+_LAW_KEYS = ("law_name", "law_param_names", "law_params")
+_LAW_HISTORY = "law_h_"
 _WHAT = "a peclet Simulation save"
 #: A saved quaternion is unit to a few ulps; one farther than this was not written by save.
 _UNIT_TOL = 1e-12
@@ -48,38 +53,44 @@ _BASE_KEYS = ("version", "n", "pos", "vel", "omega", "quat", "shape", "inv_mass"
 
 def to_arrays(sim):
     """The save's arrays of ``sim`` (a dict of numpy arrays, no objects)."""
-    b, dom, mat = sim._bodies, sim._domain, sim._material
+    b, dom, mat = sim.world.bodies, sim.world.domain, sim.world.default_material
     d = {
         "version": np.int64(FORMAT_VERSION), "n": np.int64(b.n), "pos": b.pos, "vel": b.vel,
         "omega": b.omega, "quat": b.quat, "shape": b.shape, "inv_mass": b.inv_mass,
         "inv_inertia": b.inv_inertia, "material": np.array([mat.e_n, mat.e_t, mat.mu]),
-        "iters": np.array([sim._pos_iters, sim._vel_iters], np.int64),
-        "gravity": sim._gravity, "periodic": dom.periodic,
+        "iters": np.array([sim.world.pos_iters, sim.world.vel_iters], np.int64),
+        "gravity": sim.world.gravity, "periodic": dom.periodic,
         "domain": np.stack([dom.lo, dom.hi]) if dom.lo is not None else np.zeros((0, 3)),
-        "dt": np.array([] if sim._dt is None else [sim._dt]),
-        "step_count": np.int64(sim._step_count), "time": np.float64(sim._time),
-        "margin_fraction": np.float64(sim._margin_fraction),
-        "ws_keys": sim._warm.keys, "ws_lam": sim._warm.lam,
-        "slot_capacity": np.int64(sim._detector.slot_capacity),
-        "capacity_hint": np.int64(sim._capacity_hint),
-        "n_shapes": np.int64(len(sim._shapes)), "n_walls": np.int64(len(sim._walls)),
+        "dt": np.array([] if sim.world.dt is None else [sim.world.dt]),
+        "step_count": np.int64(sim.world.step_count), "time": np.float64(sim.world.time),
+        "margin_fraction": np.float64(sim.world.margin_fraction),
+        "ws_keys": sim.world.warm.keys, "ws_lam": sim.world.warm.lam,
+        "slot_capacity": np.int64(sim.world.detector.slot_capacity),
+        "capacity_hint": np.int64(sim.world.capacity_hint),
+        "n_shapes": np.int64(len(sim.world.shapes)), "n_walls": np.int64(len(sim.world.walls)),
     }
-    ids, wids, pairs = sim._materials.arrays(b.n)
-    d.update({"wall_motion": sim._wallmo.arrays(), "material_ids": ids,
+    ids, wids, pairs = sim.world.materials.arrays(b.n)
+    d.update({"wall_motion": sim.world.wall_motion.arrays(), "material_ids": ids,
               "wall_material_ids": wids, "pair_materials": pairs,
-              "ext_force": sim._ext_force if sim._ext_force is not None else np.zeros((0, 3)),
-              "ext_torque": sim._ext_torque if sim._ext_torque is not None
+              "ext_force": sim.world.ext_force if sim.world.ext_force is not None else np.zeros((0, 3)),
+              "ext_torque": sim.world.ext_torque if sim.world.ext_torque is not None
               else np.zeros((0, 3)),
-              "scales": sim._scales.values if sim._scales.values is not None
+              "scales": sim.world.scales.values if sim.world.scales.values is not None
               else np.zeros(0)})
-    hz = sim._hertz
+    hz = sim.world.hertz
     if hz.moduli or len(hz.keys) or hz.rolling:
         d.update(zip(_HERTZ_KEYS, hz.arrays()))
     if hz.rolling:
         d.update(zip(_ROLLING_KEYS, hz.rolling_arrays()))
-    if sim._sleep.on:
-        d.update(zip(_SLEEP_KEYS, sim._sleep.arrays()))
-    for i, s in enumerate(sim._shapes):
+    if sim.world.sleep.on:
+        d.update(zip(_SLEEP_KEYS, sim.world.sleep.arrays()))
+    eng = sim.contact_engine
+    if eng.name != "impulse":
+        names = sorted(eng.parameters)
+        d.update({"law_name": np.array(eng.name), "law_param_names": np.array(names, dtype=str),
+                  "law_params": np.array([float(eng.parameters[k]) for k in names])})
+        d.update({_LAW_HISTORY + k: v for k, v in eng.history(sim.world).items()})
+    for i, s in enumerate(sim.world.shapes):
         scene = isinstance(s, SceneShape)
         d[f"shape{i}_kind"] = np.int64(1 if scene else 0)
         d[f"shape{i}_radius"] = np.float64(s.radius)
@@ -88,7 +99,7 @@ def to_arrays(sim):
             d[f"shape{i}_nr"] = s.node_reals
             d[f"shape{i}_root"] = np.int64(s.root)
             d[f"shape{i}_shell"] = s.shell
-    for i, w in enumerate(sim._walls):
+    for i, w in enumerate(sim.world.walls):
         d[f"wall{i}_ni"] = w.node_ints
         d[f"wall{i}_nr"] = w.node_reals
         d[f"wall{i}_root"] = np.int64(w.root)
@@ -158,6 +169,9 @@ def _required_keys(d):
         keys.update(_HERTZ_KEYS + _ROLLING_KEYS)
     if "sleep_params" in d:
         keys.update(_SLEEP_KEYS)
+    if "law_name" in d:
+        keys.update(_LAW_KEYS)
+        keys.update(k for k in d if k.startswith(_LAW_HISTORY))
     for i in range(n_shapes):
         keys.update({f"shape{i}_kind", f"shape{i}_radius"})
         if f"shape{i}_kind" in d and d[f"shape{i}_kind"].shape == () \
@@ -219,24 +233,45 @@ def _rebuild(cls, d):
         _load_v2(sim, d, n_walls)
     if version >= 3:
         sc = _arr(d, "scales", np.float64, (None,))
-        if len(sc) not in (0, sim._bodies.n):
-            raise PecletArgumentError("scales", f"0 or {sim._bodies.n} entries", len(sc))
+        if len(sc) not in (0, sim.world.bodies.n):
+            raise PecletArgumentError("scales", f"0 or {sim.world.bodies.n} entries", len(sc))
         if len(sc):
-            sim._scales.values = sim._scales.checked(sc, sim._bodies.n)  # masses as saved
+            sim.world.scales.values = sim.world.scales.checked(sc, sim.world.bodies.n)  # masses as saved
     if "hertz_moduli" in d:
         _load_hertz(sim, d)
     if "sleep_params" in d:
-        sim._sleep.load(_arr(d, "sleep_params", np.float64, (2,)),
+        sim.world.sleep.load(_arr(d, "sleep_params", np.float64, (2,)),
                         _arr(d, "sleep_asleep", np.int64, (None,)),
-                        _arr(d, "sleep_count", np.int64, (None,)), sim._bodies.n)
-    sim._step_count = _scalar(d, "step_count", 0, 2 ** 62)
+                        _arr(d, "sleep_count", np.int64, (None,)), sim.world.bodies.n)
+    sim.world.step_count = _scalar(d, "step_count", 0, 2 ** 62)
     t = float(_arr(d, "time", np.float64, ()))
     if not np.isfinite(t):
         raise PecletArgumentError("time", "a finite number", t)
-    sim._time = t
-    sim._detector.slot_capacity = _scalar(d, "slot_capacity", 1, 2 ** 40)
-    sim._check_ready()
+    sim.world.time = t
+    sim.world.detector.slot_capacity = _scalar(d, "slot_capacity", 1, 2 ** 40)
+    if "law_name" in d:
+        _load_law(sim, d)
+    sim.world.check_ready()
     return sim
+
+
+def _load_law(sim, d):
+    # the contact law and its parameters through the user's setter, then its history
+    name, names = d["law_name"], d["law_param_names"]
+    if name.dtype.kind != "U" or name.shape != () or names.dtype.kind not in "U" \
+            or names.ndim != 1:
+        raise PecletArgumentError("law_name", "a law name and its parameter names (text)",
+                                  str(name.dtype))
+    values = _arr(d, "law_params", np.float64, (len(names),))
+    params = {str(k): float(v) for k, v in zip(names, values)}
+    if "substeps" in params:
+        params["substeps"] = int(params["substeps"])
+    sim.set_contact_law(str(name), **params)
+    hist = {k[len(_LAW_HISTORY):]: d[k] for k in d if k.startswith(_LAW_HISTORY)}
+    for k, v in hist.items():
+        if v.dtype.kind == "f" and not np.all(np.isfinite(v)):
+            raise PecletArgumentError(_LAW_HISTORY + k, "finite numbers", "non-finite entries")
+    sim.contact_engine.restore(sim.world, hist)
 
 
 def _load_bodies(sim, d):
@@ -261,10 +296,10 @@ def _load_bodies(sim, d):
     if len(bad):
         raise PecletArgumentError("quat", "unit quaternions (x, y, z, w)", rows["quat"][bad[0]],
                                   f"row {bad[0]}")
-    if n and (shape.min() < 0 or shape.max() >= len(sim._shapes)):
-        raise PecletArgumentError("shape", f"shape ids in [0, {len(sim._shapes)})",
+    if n and (shape.min() < 0 or shape.max() >= len(sim.world.shapes)):
+        raise PecletArgumentError("shape", f"shape ids in [0, {len(sim.world.shapes)})",
                                   (int(shape.min()), int(shape.max())))
-    b = sim._bodies
+    b = sim.world.bodies
     b.resize(n)
     b.pos, b.vel, b.omega, b.quat = (rows[k].copy() for k in ("pos", "vel", "omega", "quat"))
     b.inv_mass, b.inv_inertia, b.shape = rows["inv_mass"].copy(), ii.copy(), shape
@@ -281,8 +316,8 @@ def _load_v2(sim, d, n_walls):
             raise PecletArgumentError("wall_motion", "unit wall quaternions", q.tolist(),
                                       f"wall {i}")
         sim.set_wall_velocity(i, rows[i, 7:10], rows[i, 10:13], rows[i, 13:16])
-    sim._wallmo.load(rows)                     # as saved, no renormalisation: bitwise resume
-    n = sim._bodies.n
+    sim.world.wall_motion.load(rows)                     # as saved, no renormalisation: bitwise resume
+    n = sim.world.bodies.n
     sim.set_material_ids(_arr(d, "material_ids", np.int64, (n,)))
     wids = _arr(d, "wall_material_ids", np.int64, (n_walls,))
     for i, k in enumerate(wids.tolist()):
@@ -291,8 +326,8 @@ def _load_v2(sim, d, n_walls):
         if a != int(a) or b != int(b):
             raise PecletArgumentError("pair_materials", "integer material ids", (a, b))
         sim.set_pair_material(int(a), int(b), e_n, e_t, mu)
-    if not sim._materials.pairs and not np.any(sim._materials.body_ids):
-        sim._materials.body_ids = None          # the defaults, as a fresh simulation has
+    if not sim.world.materials.pairs and not np.any(sim.world.materials.body_ids):
+        sim.world.materials.body_ids = None          # the defaults, as a fresh simulation has
     for key, setter in (("ext_force", sim.set_external_forces),
                         ("ext_torque", sim.set_external_torques)):
         a = _arr(d, key, np.float64, (None, 3))
@@ -314,7 +349,7 @@ def _load_hertz(sim, d):
         raise PecletArgumentError("hertz_xi", "finite numbers", "non-finite entries")
     if len(keys) > 1 and not np.all(np.diff(keys) >= 0):
         raise PecletArgumentError("hertz_keys", "sorted", "unsorted keys")
-    hz = sim._hertz
+    hz = sim.world.hertz
     hz.keys, hz.xi = keys, xi.copy()
     hz.mr = np.zeros((len(keys), 3))
     hz.n_bodies = _scalar(d, "hertz_n", -1, 2 ** 40)
@@ -339,7 +374,7 @@ def _load_warm_start(sim, d):
         raise PecletArgumentError("ws_lam", "finite numbers", "non-finite entries")
     if len(keys) > 1 and not np.all(np.diff(keys) > 0):
         raise PecletArgumentError("ws_keys", "strictly increasing", "unsorted keys")
-    sim._warm.keys, sim._warm.lam = keys, lam.copy()
+    sim.world.warm.keys, sim.world.warm.lam = keys, lam.copy()
 
 
 def load(cls, path):

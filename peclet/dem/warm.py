@@ -67,14 +67,14 @@ def _tiny_simulation(composed=True):
 
 
 def _stand_in_detection(sim):
-    """A detection for ``sim._detect`` that runs the real broad phase on the arguments the
+    """A detection for ``sim.world.detect`` that runs the real broad phase on the arguments the
     step passes (so with its signatures) and returns :func:`stand_in_contacts`. The tail child
     steps with it: the broad phase compiles there first, and the detection child, which
     reaches it only after compiling the composed shape's kernels, loads it from the cache and
     goes on to the narrow phase, the longest compilation."""
     def detect(pos, rot, margin, reach=None, wall_reach=None, frozen=None, wall_static=None):
-        sim._detector.candidates(sim._geometry(), sim._shape_table()[1], pos, margin,
-                                 sim._domain, reach, wall_reach, frozen, wall_static)
+        sim.world.detector.candidates(sim.world.geometry(), sim.world.shape_table()[1], pos, margin,
+                                 sim.world.domain, reach, wall_reach, frozen, wall_static)
         return stand_in_contacts()
     return detect
 
@@ -101,9 +101,9 @@ def compile_step_kernels(part="all"):
 
     sim = _tiny_simulation(composed=part != "tail")
     if part == "tail":
-        sim._detect = _stand_in_detection(sim)
+        sim.world.detect = _stand_in_detection(sim)
     elif part == "hertz":
-        sim._detect = lambda *args, **kwargs: stand_in_contacts()
+        sim.world.detect = lambda *args, **kwargs: stand_in_contacts()
     if part == "hertz":
         sim.set_hertz_material(0, 1e7, 0.3)
         sim.set_rolling_friction(0.05)

@@ -83,8 +83,10 @@ notes):
   rebuild;
 - ``distributed``: the distributed contact of a pair; ``overlap``: its region along a normal
   (grid, zooms, integral, law);
-- ``state``: :class:`HertzState`; ``candidates``: the Verlet list, pair parameters, a composed
-  pair's patches and carried histories; ``substep``: the substep, checks and listing;
+- ``state``: :class:`HertzState`; ``candidates``: the Verlet list, what every law asks of a
+  pair, a composed pair's patches and carried histories; ``substep``: the substep and listing;
+- ``engine``: :class:`ExplicitEngine`, the contact engine of every force law
+  (:class:`peclet.dem.engine.ForceLaw`), and :class:`HertzLaw`, this law;
 - ``dispatch``: the one serial-or-parallel choice of the per-row kernels (thresholds below).
 
 Kernels take bundled arrays (NamedTuples: :class:`~peclet.dem.hertz.law.ContactRows`,
@@ -121,4 +123,5 @@ from .overlap import (DIST_BISECT, DIST_DEEP_LIMIT, DIST_FEATURE, DIST_GRID,  # 
 from .distributed import DIST_DISTINCT, DIST_FALLBACK, distributed_geometry  # noqa: E402,F401
 from .state import HertzState  # noqa: E402,F401
 from .candidates import Candidates, Pairs  # noqa: E402,F401
-from .substep import DEFAULT_SKIN_FRACTION, check, last_listing, substep  # noqa: E402,F401
+from .substep import DEFAULT_SKIN_FRACTION, last_listing, substep  # noqa: E402,F401
+from .engine import ExplicitEngine, HertzLaw, HertzParams  # noqa: E402,F401

@@ -7,29 +7,22 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .calibration import damping_gamma
 from .fields import probe_counts, shapes_of
 from .overlap import DIST_FEATURE, MODE_DISTRIBUTED
 from .patch import FAILED_FEATURE, MAX_PATCHES
 from .seeds import seed_patches
 
 
-def pair_parameters(sim, c, state, mass_inv):
-    """E*, G*, R*, m*, gamma, mu per contact (each (nc,))."""
+def pair_basics(world, c, mass_inv):
+    """What every force law asks of a candidate pair (each (nc,)): R* (``1/R* = 1/R_a +
+    1/R_b`` of the bounding radii; a wall counts as flat, R* = R_a), m* (``1/m* = 1/m_a +
+    1/m_b``; a wall or a body of inverse mass 0 adds nothing; 0 when both are fixed), the
+    pair material's restitution e_n and friction mu."""
     from peclet.dem.materials import per_contact
-    b = sim._bodies
-    mats = sim._materials
-    ids = mats.body_ids if mats.body_ids is not None else np.zeros(b.n, np.int64)
-    eb, nub = state.body_moduli(ids)
-    ce_body = (1.0 - nub * nub) / eb
-    cg_body = (2.0 - nub) * 2.0 * (1.0 + nub) / eb
-    ce_wall, cg_wall = state.wall_moduli(mats.wall_ids)
-    radii = sim._radii()
+    mats = world.materials
+    radii = world.radii()
     isw = c.b < 0
     bi = np.where(isw, 0, c.b)
-    wi = np.where(isw, -1 - c.b, 0)
-    ce = ce_body[c.a] + (np.where(isw, ce_wall[wi] if len(ce_wall) else 0.0, ce_body[bi]))
-    cg = cg_body[c.a] + (np.where(isw, cg_wall[wi] if len(cg_wall) else 0.0, cg_body[bi]))
     ra = radii[c.a]
     rb = radii[bi]
     rstar = np.where(isw, ra, ra * rb / (ra + rb))
@@ -37,23 +30,20 @@ def pair_parameters(sim, c, state, mass_inv):
     with np.errstate(divide="ignore"):
         mstar = np.where(im > 0.0, 1.0 / np.where(im > 0.0, im, 1.0), 0.0)
     if mats.active():
-        e_c, _, mu_c = mats.per_contact(c.a, c.b, sim._material, sim._geometry())
+        e_c, _, mu_c = mats.per_contact(c.a, c.b, world.default_material, world.geometry())
     else:
-        e_c, _, mu_c = per_contact(c.b, sim._material, sim._geometry())
-    ue, inv = np.unique(e_c, return_inverse=True)
-    gam = np.array([damping_gamma(float(e)) for e in ue])[inv.reshape(-1)] \
-        if len(ue) else np.zeros(0)
-    return 1.0 / ce, 1.0 / cg, rstar, mstar, gam, np.ascontiguousarray(mu_c, dtype=np.float64)
+        e_c, _, mu_c = per_contact(c.b, world.default_material, world.geometry())
+    return rstar, mstar, e_c, np.ascontiguousarray(mu_c, dtype=np.float64)
 
 
-def pair_rolling(sim, c, state):
+def pair_rolling(world, c, state):
     """mu_r per contact (nc,) from :meth:`HertzState.set_rolling` (a pair of material ids, else
     the setting for every pair, else 0; a wall without a material id takes the setting for
     every pair), or None when no contact has rolling resistance (the step then does not run
     the rolling kernel at all: the arithmetic of a run without it)."""
     if not state.rolling_active():
         return None
-    mats = sim._materials
+    mats = world.materials
     nc = len(c.a)
     ida = mats.body_ids[c.a] if mats.body_ids is not None else np.zeros(nc, np.int64)
     isw = c.b < 0
@@ -77,14 +67,14 @@ def pair_rolling(sim, c, state):
     return out
 
 
-def pair_restitution(sim, c):
-    """e_n per contact (the pair material's, as :func:`pair_parameters` uses)."""
+def pair_restitution(world, c):
+    """e_n per contact (the pair material's, as :func:`pair_basics` gives it)."""
     from peclet.dem.materials import per_contact
-    mats = sim._materials
+    mats = world.materials
     if mats.active():
-        e_c, _, _ = mats.per_contact(c.a, c.b, sim._material, sim._geometry())
+        e_c, _, _ = mats.per_contact(c.a, c.b, world.default_material, world.geometry())
     else:
-        e_c, _, _ = per_contact(c.b, sim._material, sim._geometry())
+        e_c, _, _ = per_contact(c.b, world.default_material, world.geometry())
     return np.asarray(e_c, np.float64)
 
 
@@ -149,7 +139,7 @@ def _home(x, R, p):
     return (p - x) @ R
 
 
-def _composed_candidates(sim, state, c, x, rot, geo, shape_of, skin, n_walls):
+def _composed_candidates(world, state, c, x, rot, geo, shape_of, skin, n_walls):
     """The candidate rows with every composed pair (a composed body on either side) replaced
     by its patches (:func:`seed_patches`), their feature ids (the probe nearest the patch
     point: of a, or of b offset by FEATURE_DIR when a is a sphere; FAILED_FEATURE added for a
@@ -300,24 +290,24 @@ def _turn_angles(q, q_ref):
     return 4.0 * np.arcsin(np.minimum(0.5 * chord, 1.0))
 
 
-def candidates(sim, state, x, q, skin_frac, inv_mass):
+def candidates(world, state, law, x, q, skin_frac, inv_mass):
     """The candidate list for positions ``x``: kept from the last substep while no pair can
     have closed the skin (twice the largest displacement since it was built below the skin,
     every wall static and 1-Lipschitz, no periodic axis; with composed particles, four times
     the largest surface displacement |dx| + R_bound x turn angle, the other half of the skin
     covering the probes' spacing), else rebuilt by the engine's detection with margin =
-    ``skin_frac`` x the smallest radius. Every contact that touches is in the list either way,
+    ``skin_frac`` x the smallest radius; the pair parameters are the force ``law``'s. Every contact that touches is in the list either way,
     and its geometry is recomputed exactly at every substep (:func:`contact_geometry`,
     :func:`patch_geometry`); for spheres the schedule of rebuilds never changes a bit."""
     from peclet.core.geom.transforms import quats_to_matrices
     from peclet.dem.contacts import WarmStart
     from peclet.dem.shapes import SCENE
     cand = state.cand
-    geo = sim._geometry()
-    shape_of = sim._shape_table()[1]
+    geo = world.geometry()
+    shape_of = world.shape_table()[1]
     scene = geo.shape_kind[shape_of] == SCENE
-    if cand is not None and len(cand.x_ref) == len(x) and not sim._domain.periodic.any() \
-            and not sim._wallmo.moving() and bool(np.all(geo.wall_lip)):
+    if cand is not None and len(cand.x_ref) == len(x) and not world.domain.periodic.any() \
+            and not world.wall_motion.moving() and bool(np.all(geo.wall_lip)):
         d = np.sqrt(((x - cand.x_ref) ** 2).sum(axis=1))
         if cand.q_ref is None:
             if 2.0 * float(d.max(initial=0.0)) < cand.skin:
@@ -326,26 +316,26 @@ def candidates(sim, state, x, q, skin_frac, inv_mass):
             d = d + np.where(scene, cand.radii * _turn_angles(q, cand.q_ref), 0.0)
             if 4.0 * float(d.max(initial=0.0)) < cand.skin:
                 return cand
-    radii = sim._radii()
+    radii = world.radii()
     skin = skin_frac * float(radii.min())
     rot = np.ascontiguousarray(quats_to_matrices(q))
-    c = sim._detect(x, rot, skin)
-    n_walls = len(sim._walls)
-    comp = _composed_candidates(sim, state, c, x, rot, geo, shape_of, skin, n_walls) \
+    c = world.detect(x, rot, skin)
+    n_walls = len(world.walls)
+    comp = _composed_candidates(world, state, c, x, rot, geo, shape_of, skin, n_walls) \
         if scene.any() else None
     if comp is None:
         cand = Candidates(c.a, c.b, np.ascontiguousarray(c.shift), c.feat,
                           WarmStart.keys_of(c, n_walls), x.copy(), skin, radii,
-                          pair_parameters(sim, c, state, inv_mass),
+                          law.pair_parameters(world, c, inv_mass),
                           q_ref=q.copy() if scene.any() else None,
-                          mu_r=pair_rolling(sim, c, state))
+                          mu_r=pair_rolling(world, c, state) if law.rolling else None)
     else:
         a, b, shift, feat, keys, crow, srow, mode, u, first = comp
         cand = Candidates(a, b, shift, feat, keys, x.copy(), skin, radii,
-                          pair_parameters(sim, Pairs(a, b, feat), state, inv_mass),
+                          law.pair_parameters(world, Pairs(a, b, feat), inv_mass),
                           crow, srow, mode, u, first, q.copy(),
-                          pair_restitution(sim, Pairs(a, b, feat)),
-                          pair_rolling(sim, Pairs(a, b, feat), state))
+                          pair_restitution(world, Pairs(a, b, feat)),
+                          pair_rolling(world, Pairs(a, b, feat), state) if law.rolling else None)
     state.cand = cand
     return cand
 
