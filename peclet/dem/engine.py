@@ -78,6 +78,7 @@ class ForceLaw(Protocol):
 LAWS = {
     "impulse": "peclet.dem.impulse:ImpulseEngine",
     "hertz": "peclet.dem.hertz.engine:make",
+    "linear": "peclet.dem.linear:make",
 }
 
 
