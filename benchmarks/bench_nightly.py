@@ -62,8 +62,8 @@ def draw(n, seed_):
 def replayed(directory):
     """The examples saved in the example database ``directory`` under the keys of the
     quadrature shards (read-only)."""
-    from peclet_verify import search as S
     from peclet_verify import registry as REG
+    from peclet_verify import search as S
     from peclet_verify.profiles import SHARDS, make_settings
     out = []
 

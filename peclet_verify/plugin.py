@@ -51,9 +51,10 @@ from . import registry as REG
 
 PROFILES = ("dev", "ci", "nightly", "smoke")  # = peclet_verify.profiles.PROFILES (a test checks)
 USER_PROPERTY = "peclet_certificate"
-#: What an engine declares about itself that a verdict depends on, printed under the summary
-#: table (the report has it in each certificate's details).
-DECLARED = ("declared_floor",)
+#: What a verdict depends on beyond its figure (a certificate's detail key -> its label),
+#: printed under the summary table (the report has it in each certificate's details): the
+#: error floor an engine declared, whether determinism was compared across processes.
+VERDICT_NOTES = {"declared_floor": "declared floor", "cross_process": "across processes"}
 _STATE = pytest.StashKey[dict]()
 
 
@@ -286,11 +287,12 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
                       red=v == "FAILED", green=v == "PASSED",
                       yellow=v in ("UNAVAILABLE", "N/A", "WAIVED", "NOT CLAIMED"))
     for c in state["rows"]:
-        declared = {k: v for k, v in (c.get("details") or {}).items() if k in DECLARED}
-        if declared:
-            tr.write_line(f"{c['name']}: declared by {(c.get('details') or {}).get('backend', '-')}"
-                          f": " + ", ".join(f"{k.replace('declared_', '')} {v:g}"
-                                            for k, v in declared.items()))
+        details = c.get("details") or {}
+        notes = [f"{label} {details[key]:g}" if isinstance(details[key], float) else
+                 f"{label}: {details[key]}" for key, label in VERDICT_NOTES.items()
+                 if key in details]
+        if notes:
+            tr.write_line(f"{c['name']} ({details.get('backend', '-')}): " + "; ".join(notes))
     for c in state["rows"]:
         if c["status"] == "failed":
             tr.write_sep("-", f"counterexample: {c['name']}" +

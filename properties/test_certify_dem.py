@@ -2,12 +2,12 @@
 import pytest
 from hypothesis import strategies as st
 
-from peclet_verify.dem import properties as DP
-from peclet_verify.dem import buffers as DB
-from peclet_verify import search as S
-from peclet_verify.geometry import strategies as GS
-from peclet_verify.dem import strategies as DS
 from peclet_verify import registry as REG
+from peclet_verify import search as S
+from peclet_verify.dem import buffers as DB
+from peclet_verify.dem import properties as DP
+from peclet_verify.dem import strategies as DS
+from peclet_verify.geometry import strategies as GS
 
 pytestmark = pytest.mark.peclet_certify
 

@@ -7,13 +7,13 @@ imports); the tree-walk one certifies peclet's flat program itself.
 """
 import pytest
 
-from peclet_verify.geometry import properties as GP
-from peclet_verify import search as S
-from peclet_verify.geometry import strategies as GS
 from peclet_verify import registry as REG
-from peclet_verify.planted import TreeWalkBackend
+from peclet_verify import search as S
+from peclet_verify.geometry import properties as GP
+from peclet_verify.geometry import strategies as GS
 from peclet_verify.geometry.suite import *  # noqa: F401,F403  (the backend certificates)
 from peclet_verify.geometry.suite import TREES
+from peclet_verify.planted import TreeWalkBackend
 
 
 @pytest.mark.peclet_certify

@@ -10,10 +10,10 @@ import math
 
 import pytest
 
-from peclet_verify.mass import properties as MP
-from peclet_verify import search as S
-from peclet_verify.mass import strategies as MS
 from peclet_verify import registry as REG
+from peclet_verify import search as S
+from peclet_verify.mass import properties as MP
+from peclet_verify.mass import strategies as MS
 from peclet_verify.profiles import SHARDS
 
 pytestmark = pytest.mark.peclet_certify

@@ -5,8 +5,8 @@ certificate, so they live here and not among the certificates in properties/.)""
 import numpy as np
 import pytest
 
-from peclet_verify.mass import properties as MP
 from peclet_verify.geometry import strategies as GS
+from peclet_verify.mass import properties as MP
 
 
 # The fixed set covers each closed-form kind, turned,

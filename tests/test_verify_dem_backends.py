@@ -8,15 +8,15 @@ import sys
 import numpy as np
 import pytest
 
-from peclet_verify.dem import properties as DP
-from peclet_verify.mechanics import properties as XP
 from peclet_verify import search as S
+from peclet_verify.dem import properties as DP
 from peclet_verify.dem import strategies as DS
-from peclet_verify.mechanics import strategies as XS
 from peclet_verify.dem.backend import (PageApiBackend, PecletDemBackend, SubprocessDemBackend,
                                        child_command, load_backend)
-from peclet_verify.scenario import Scenario
+from peclet_verify.mechanics import properties as XP
+from peclet_verify.mechanics import strategies as XS
 from peclet_verify.report import DEM_CERTIFICATES, MASS_CERTIFICATES, load_report
+from peclet_verify.scenario import Scenario
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEM_FILE = os.path.join(ROOT, "properties", "test_certify_dem_backend.py")

@@ -4,8 +4,8 @@ into its own virtual environment (it ships a ``peclet`` namespace that must not 
 import pytest
 from hypothesis import HealthCheck, settings
 
-from peclet_verify.geometry import properties as GP
 from peclet_verify import search as S
+from peclet_verify.geometry import properties as GP
 from peclet_verify.geometry import strategies as GS
 from peclet_verify.geometry.backend import SubprocessBackend, wheel_child_command
 

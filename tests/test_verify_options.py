@@ -10,8 +10,8 @@ import textwrap
 
 import pytest
 
-from peclet_verify import search as S
 from peclet_verify import report as R
+from peclet_verify import search as S
 from peclet_verify.profiles import PROFILES, SHARDS
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -354,3 +354,26 @@ def test_replay_reruns_the_saved_failure_from_a_read_only_database(tmp_path):
     assert not (tmp_path / ".hypothesis").exists()
     line = _usage_line(_pytest(tmp_path, "--peclet-certify", "--peclet-replay=missing-db"))
     assert "--peclet-replay missing-db: not a directory" in line
+
+
+def test_every_family_record_names_what_the_plugin_and_a_downstream_project_use():
+    """Each Family of the registry: its option is the plugin's, its hook is specified, its
+    fixture is the plugin's, its backend module offers load/check/default and its suite
+    module exports certificate tests only (what ``from ... import *`` gives)."""
+    import importlib
+
+    from peclet_verify import hooks, plugin, registry
+    options = {flag for flag, _, _ in plugin._OPTIONS}
+    assert registry.FAMILY_NAMES == ("geometry", "mass", "dem", "mechanics")
+    for fam in registry.FAMILIES:
+        assert fam.package == f"peclet_verify.{fam.name}"
+        assert fam.option in options and callable(getattr(hooks, fam.hook))
+        assert getattr(plugin, fam.fixture)  # the session fixture, registered with the plugin
+        backend = importlib.import_module(fam.backend)
+        for name in ("load_backend", "check_backend", "default_backend"):
+            assert callable(getattr(backend, name)), (fam.name, name)
+        suite = importlib.import_module(fam.suite)
+        assert suite.__all__ and all(
+            n.startswith("test_") and getattr(suite, n).pytestmark[0].name == "peclet_certify"
+            for n in suite.__all__), fam.suite
+        assert set(registry.titles(family=fam.name)), fam.name

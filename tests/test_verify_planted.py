@@ -6,14 +6,14 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from peclet_verify import planted
-from peclet_verify.geometry import properties as GP
-from peclet_verify.mass import properties as MP
-from peclet_verify.dem import properties as DP
-from peclet_verify.dem import buffers as DB
-from peclet_verify.geometry import backend as GB
 from peclet_verify import search as S
-from peclet_verify.geometry import strategies as GS
+from peclet_verify.dem import buffers as DB
+from peclet_verify.dem import properties as DP
 from peclet_verify.dem import strategies as DS
+from peclet_verify.geometry import backend as GB
+from peclet_verify.geometry import properties as GP
+from peclet_verify.geometry import strategies as GS
+from peclet_verify.mass import properties as MP
 
 FAST = settings(max_examples=30, derandomize=True, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))

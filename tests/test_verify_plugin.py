@@ -9,11 +9,8 @@ import pytest
 
 DOWNSTREAM = textwrap.dedent('''
     import pytest
-    from peclet_verify.geometry import properties as GP
     from peclet_verify import search as S
-    from peclet_verify.geometry import strategies as GS
     from peclet_verify.geometry import properties as GP
-    from peclet_verify import search as S
     from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify
@@ -66,8 +63,8 @@ def test_failing_certificate_exits_nonzero_with_snippet(tmp_path):
 LONG = textwrap.dedent('''
     import pytest
     from hypothesis import settings, strategies as st
-    from peclet_verify.geometry import properties as GP
     from peclet_verify import search as S
+    from peclet_verify.geometry import properties as GP
     from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify
@@ -111,11 +108,8 @@ def test_this_repo_properties_skip_without_flag():
 # -------------------------------------------------------------- run-order independence (ci)
 CERT_A = textwrap.dedent('''
     import pytest
-    from peclet_verify.geometry import properties as GP
     from peclet_verify import search as S
-    from peclet_verify.geometry import strategies as GS
     from peclet_verify.geometry import properties as GP
-    from peclet_verify import search as S
     from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify
@@ -127,11 +121,8 @@ CERT_A = textwrap.dedent('''
 ''')
 CERT_B = textwrap.dedent('''
     import pytest
-    from peclet_verify.geometry import properties as GP
     from peclet_verify import search as S
-    from peclet_verify.geometry import strategies as GS
     from peclet_verify.geometry import properties as GP
-    from peclet_verify import search as S
     from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify

@@ -19,7 +19,7 @@ from .strategies import Pour, pour_scenario
 
 __all__ = ["state_hash", "reference_pour", "determinism", "run_checked", "trajectory_hash",
            "determinism_one_thread", "determinism_across_threads", "dem_buffer_growth",
-           "first_difference"]
+           "first_difference", "cross_process"]
 
 
 def state_hash(arrays) -> str:
@@ -130,6 +130,18 @@ def first_difference(a, b, scenario) -> str:
     return "no difference in the recorded arrays"
 
 
+def cross_process(backend) -> str:
+    """How the determinism certificate compares ``backend`` across processes: ``"checked: 2
+    fresh processes (...)"`` or ``"not checked: <why>"`` (see
+    :func:`~peclet_verify.dem.backend.fresh_engines`, whose engines it starts if need be)."""
+    from .backend import fresh_engines
+    engines, why_not = fresh_engines(backend)
+    if engines is None:
+        return f"not checked: {backend_name(backend)} cannot be remade in a fresh process: " \
+               f"{why_not}"
+    return f"checked: {len(engines)} fresh processes ({backend_name(engines[0])})"
+
+
 def determinism_one_thread(backend, p: Pour, fresh: bool = True) -> PropertyResult:
     """Two runs of the same pour at one thread give the same bytes (every recorded position,
     quaternion, velocity, angular velocity and contact count), and so does a run in each of
@@ -150,10 +162,7 @@ def determinism_one_thread(backend, p: Pour, fresh: bool = True) -> PropertyResu
         runs.append(traj)
     cross = "not checked (fresh=False)"
     if fresh:
-        engines, why_not = fresh_engines(backend)
-        cross = f"not checked: {backend_name(backend)} cannot be remade in a fresh process: " \
-                f"{why_not}" if engines is None else \
-                f"checked: {len(engines)} fresh processes ({backend_name(engines[0])})"
+        engines, cross = fresh_engines(backend)[0], cross_process(backend)
         for k, engine in enumerate(engines or ()):
             traj, why = run_checked(engine, sc, 1)
             if why:

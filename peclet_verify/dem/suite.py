@@ -16,7 +16,7 @@ import pytest
 
 from .. import registry as REG
 from ..search import NOT_CLAIMED, PropertyResult
-from ..suites import capped_search, certificate_test, tagged
+from ..suites import capped_search, tagged
 from . import properties as P
 from . import strategies as S
 
@@ -42,11 +42,16 @@ def describe_hints(a):
             f"{S.pour_scenario(p, capacity=cap, contact_capacity=ccap).snippet()}")
 
 
-test_dem_determinism_one_thread = certificate_test(
-    "test_dem_determinism_one_thread",
-    "Two runs of a pour at one thread, and one in each of two fresh processes: the same bytes.",
-    "peclet_dem_backend", P.determinism_one_thread, S.pours, "dem_determinism_one_thread",
-    CAPS["determinism"], describe_pour)
+@pytest.mark.peclet_certify
+def test_dem_determinism_one_thread(peclet_certificate, peclet_dem_backend):
+    """Two runs of a pour at one thread, and one in each of two fresh processes: the same
+    bytes. The report says whether the fresh processes ran (``cross_process``)."""
+    be = peclet_dem_backend
+    res = capped_search(be, P.determinism_one_thread, S.pours(),
+                        REG.title("dem_determinism_one_thread"), CAPS["determinism"],
+                        describe_pour)
+    res.details["cross_process"] = P.cross_process(be)
+    peclet_certificate(res)
 
 
 @pytest.mark.peclet_certify

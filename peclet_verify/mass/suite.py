@@ -7,7 +7,10 @@ with a ``pytest_peclet_make_mass_backend(config)`` hook in ``conftest.py`` (or
 ``--peclet-mass-backend module:factory``; without either, peclet's quadrature is certified).
 See :func:`peclet_verify.mass.properties.mass_properties_certificate`.
 """
-from ..suites import certificate_test
+import pytest
+
+from .. import registry as REG
+from ..suites import capped_search
 from . import properties as P
 from . import strategies as S
 
@@ -16,10 +19,14 @@ __all__ = ["test_mass_properties_closed_forms"]
 #: Examples at most (the profile's count if lower): each asks every declared resolution.
 CAP = 5
 
-test_mass_properties_closed_forms = certificate_test(
-    "test_mass_properties_closed_forms",
-    "One-leaf solids (moved, turned, scaled) against the leaf table's closed forms: the error "
-    "falls at the stated order as the resolution rises; every claim bounds the error; the "
-    "declared floor is at most MAX_FLOOR.",
-    "peclet_mass_backend", lambda be, r: P.mass_properties_certificate(r, be),
-    S.closed_form_solids, "mass_closed_forms", CAP)
+
+@pytest.mark.peclet_certify
+def test_mass_properties_closed_forms(peclet_certificate, peclet_mass_backend):
+    """One-leaf solids (moved, turned, scaled) against the leaf table's closed forms: the
+    error falls at the stated order as the resolution rises; every claim bounds the error;
+    the declared floor is at most MAX_FLOOR (and is reported, passed or failed)."""
+    be = peclet_mass_backend
+    res = capped_search(be, lambda engine, r: P.mass_properties_certificate(r, engine),
+                        S.closed_form_solids(), REG.title("mass_closed_forms"), CAP)
+    res.details["declared_floor"] = P.declared_floor(be)
+    peclet_certificate(res)
