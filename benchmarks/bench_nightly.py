@@ -7,7 +7,7 @@ The examples are those the nightly's quadrature shards search (the same strategy
 drawn by Hypothesis from a fixed seed (generation only, no database), or with ``--replay DIR``
 the ones saved under the shards' keys in an example database (e.g. a nightly's uploaded
 ``OUT_DIR/hypothesis/examples``). Each example is certified by
-:func:`peclet_verify.properties.mass.quadrature_convergence` with ``fast=False`` (every
+:func:`peclet_verify.mass.properties.quadrature_convergence` with ``fast=False`` (every
 tolerance level on its own: what the nightly ran before) and ``fast=True`` (the levels share
 the box check and the integrated cells), interleaved, ``R`` times each; an example's CPU is
 the least of its repeats, measured with ``time.process_time`` (the CPU of every thread of the
@@ -39,8 +39,8 @@ NIGHTLY_EXAMPLES = 2000
 
 
 def _strategy():
-    from peclet_verify import strategies as pst
-    return pst.closed_form_solids(pst.CLOSED_FORM_KINDS)
+    from peclet_verify.mass import strategies as MS
+    return MS.closed_form_solids(MS.CLOSED_FORM_KINDS)
 
 
 def draw(n, seed_):
@@ -62,17 +62,17 @@ def draw(n, seed_):
 def replayed(directory):
     """The examples saved in the example database ``directory`` under the keys of the
     quadrature shards (read-only)."""
-    from peclet_verify import properties as P
     from peclet_verify import registry as REG
+    from peclet_verify import search as S
     from peclet_verify.profiles import SHARDS, make_settings
     out = []
 
     def record(recipe):
         out.append(recipe)
-        return P.PropertyResult("record", True, status=P.NOT_APPLICABLE)
+        return S.PropertyResult("record", True, status=S.NOT_APPLICABLE)
     settings_ = make_settings("nightly", replay=directory)
     for shard in range(1, SHARDS + 1):
-        P.search(record, _strategy(), settings=settings_,
+        S.search(record, _strategy(), settings=settings_,
                  name=f"{REG.title('quadrature')} [shard {shard}/{SHARDS}]")
     return out
 
@@ -84,7 +84,7 @@ def _verdict(res):
 
 def certify(recipe, fast):
     """(CPU seconds, result) of one certificate of ``recipe``."""
-    from peclet_verify.properties.mass import quadrature_convergence
+    from peclet_verify.mass.properties import quadrature_convergence
     t = time.process_time()
     res = quadrature_convergence(recipe, fast=fast)
     return time.process_time() - t, res
@@ -93,7 +93,7 @@ def certify(recipe, fast):
 def breakdown(recipe):
     """CPU by step of one example: {"closed form", "build", "ref <tol>", "shared <tol>"} in
     seconds and the cells each level integrates ("cells <tol>"); None without a closed form."""
-    from peclet_verify.properties.mass import closed_form
+    from peclet_verify.mass.properties import closed_form
     row = {}
     t = time.process_time()
     exact = closed_form(recipe)

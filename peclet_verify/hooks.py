@@ -6,7 +6,7 @@ A downstream project certifies its own engine with one function in its ``conftes
         from my_engine import MyEngine
         return MyEngine()          # evaluate(node_ints, node_reals, root, points) -> phi
 
-and one test module that imports the certificates: ``from peclet_verify.suite import *``.
+and one test module that imports the certificates: ``from peclet_verify.geometry.suite import *``.
 """
 import pytest
 
@@ -14,7 +14,7 @@ import pytest
 @pytest.hookspec(firstresult=True)
 def pytest_peclet_make_backend(config):
     """Return the engine under certification (an object with ``evaluate``, optionally
-    ``evaluate_grad``, ``bound``, ``close`` and ``name``; see :mod:`peclet_verify.backends`),
+    ``evaluate_grad``, ``bound``, ``close`` and ``name``; see :mod:`peclet_verify.geometry.backend`),
     or None to leave the choice to another plugin. Called once per session (per xdist
     worker), only when a certificate needs the backend and ``--peclet-backend`` is not given
     (the command line wins)."""
@@ -24,7 +24,7 @@ def pytest_peclet_make_backend(config):
 def pytest_peclet_make_dem_backend(config):
     """Return the DEM engine under certification (an object with ``run(scenario, threads)``,
     optionally ``thread_counts``, ``thread_determinism``, ``close`` and ``name``; see
-    :mod:`peclet_verify.dem_backends`), or None. Called once per session (per xdist worker),
+    :mod:`peclet_verify.dem.backend`), or None. Called once per session (per xdist worker),
     only when a DEM certificate needs it and ``--peclet-dem-backend`` is not given; without
     either, peclet's own engine is certified."""
 
@@ -33,6 +33,6 @@ def pytest_peclet_make_dem_backend(config):
 def pytest_peclet_make_mass_backend(config):
     """Return the mass-property engine under certification (an object with
     ``mass_properties(node_ints, node_reals, root, lo, hi, resolution_or_tol)``,
-    ``resolutions`` and ``order``; see :mod:`peclet_verify.mass_backends`), or None. Called
+    ``resolutions`` and ``order``; see :mod:`peclet_verify.mass.backend`), or None. Called
     once per session (per xdist worker) when ``--peclet-mass-backend`` is not given; without
     either, peclet's quadrature is certified."""

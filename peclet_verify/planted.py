@@ -28,7 +28,7 @@ from numba import njit, prange
 
 from peclet.core.geom import SceneBuilder, quat_to_matrix
 
-from .backends import ReferenceBackend
+from .geometry.backend import ReferenceBackend
 
 __all__ = ["OverclaimingBoundBackend", "TreeWalkBackend", "biased_cell_quadrature",
            "cell_quadrature", "thread_order_pour", "FixedBufferEngine", "fixed_buffer_engine",
@@ -194,7 +194,7 @@ class FixedBufferEngine:
 
 
 def fixed_buffer_engine(ni, nr, root, probes, radius, positions, quaternions):
-    """Factory for :func:`peclet_verify.properties.buffer_growth`: the never-grown buffer."""
+    """Factory for :func:`peclet_verify.dem.buffers.buffer_growth`: the never-grown buffer."""
     return FixedBufferEngine(ni, nr, root, probes, radius, positions, quaternions, grow=False)
 
 
@@ -357,8 +357,8 @@ class RestitutionOffSimulation(_PecletPage):
 
 
 def _planted_dem(cls, name):
-    from .dem_backends import PageApiBackend, _numba_thread_counts, _numba_threads
-    return PageApiBackend(cls, _numba_threads, name=name, thread_counts=_numba_thread_counts())
+    from .dem.backend import PageApiBackend, numba_thread_counts, numba_threads
+    return PageApiBackend(cls, numba_threads, name=name, thread_counts=numba_thread_counts())
 
 
 def nondeterministic_dem_backend():
@@ -383,7 +383,7 @@ class OverclaimingVolumeMassBackend:
     name = "planted: volume 1e-4 off, claims 1e-8"
 
     def __init__(self):
-        from .mass_backends import PecletMassBackend
+        from .mass.backend import PecletMassBackend
         self._ref = PecletMassBackend(claim="estimate")
         self.resolutions, self.order, self.constant = (self._ref.resolutions, self._ref.order,
                                                        self._ref.constant)

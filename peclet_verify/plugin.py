@@ -19,13 +19,21 @@ Options (group "peclet"):
                             ``pytest_peclet_make_dem_backend`` hook, else peclet.dem)
   --peclet-mass-backend SPEC  "module:factory" mass-property engine to certify (default: the
                             ``pytest_peclet_make_mass_backend`` hook, else peclet's quadrature)
+  --peclet-deadline SECONDS   the deadline of each call of an engine running in this process
+                            (default 300: :data:`peclet_verify.processes.DEFAULT_DEADLINE`); a
+                            call that misses it fails its certificate, naming the engine, the
+                            call and the deadline (a child process has its own ``timeout``)
+
+The engine options, hooks and fixtures come from the family records
+(:data:`peclet_verify.registry.FAMILIES`): one option, hook and session fixture per engine
+(``peclet_backend``, ``peclet_mass_backend``, ``peclet_dem_backend``; the mechanics family
+certifies the DEM engine), made by :mod:`peclet_verify.fixtures`.
 
 Every option is checked when pytest starts (a one-line usage error naming the option and the
-file), before any certificate runs. Fixtures: ``peclet_backend`` (the engine under
-certification, session scope) and ``peclet_certificate`` (call it with a
-:class:`~peclet_verify.properties.PropertyResult`: it records the certificate, skips an
+file), before any certificate runs. Fixture ``peclet_certificate``: call it with a
+:class:`~peclet_verify.search.PropertyResult`: it records the certificate, skips an
 "unavailable" one, xfails a waived failure and fails the test, showing the shrunk
-counterexample, on any other failure).
+counterexample, on any other failure.
 
 Results travel on each test's report (``user_properties``), so under pytest-xdist (``-n``) the
 controller's summary, comparison and report hold every certificate; only the controller
@@ -38,12 +46,15 @@ import os
 
 import pytest
 
-# the DEM and mass-property families' fixtures (pytest and stdlib only at import)
-from .family_fixtures import (check_family_options, check_module_found,  # noqa: F401
-                              peclet_dem_backend, peclet_mass_backend)
+from . import fixtures as F
+from . import registry as REG
 
 PROFILES = ("dev", "ci", "nightly", "smoke")  # = peclet_verify.profiles.PROFILES (a test checks)
 USER_PROPERTY = "peclet_certificate"
+#: What a verdict depends on beyond its figure (a certificate's detail key -> its label),
+#: printed under the summary table (the report has it in each certificate's details): the
+#: error floor an engine declared, whether determinism was compared across processes.
+VERDICT_NOTES = {"declared_floor": "declared floor", "cross_process": "across processes"}
 _STATE = pytest.StashKey[dict]()
 
 
@@ -64,9 +75,6 @@ _OPTIONS = (
     ("--peclet-report", "PATH",
      "write the certificates as JSON to PATH (atomic; never replaces a file that is not a "
      "peclet report)"),
-    ("--peclet-backend", "MODULE:FACTORY",
-     "engine to certify: factory() returns an object with evaluate(...) (default: the "
-     "pytest_peclet_make_backend hook, else the reference)"),
     ("--peclet-compare", "PREVIOUS.json",
      "fail if a certificate that passed in PREVIOUS.json fails now, or its figure got worse "
      "beyond the documented tolerance"),
@@ -76,14 +84,17 @@ _OPTIONS = (
     ("--peclet-replay", "DIR",
      "re-run only the examples saved in the example database DIR (read-only, nothing "
      "generated), e.g. the last nightly's"),
-    ("--peclet-dem-backend", "MODULE:FACTORY",
-     "DEM engine to certify: factory() returns an object with run(scenario, threads) "
-     "(default: the pytest_peclet_make_dem_backend hook, else peclet.dem)"),
-    ("--peclet-mass-backend", "MODULE:FACTORY",
-     "mass-property engine to certify: factory() returns an object with mass_properties(...), "
-     "resolutions and order (default: the pytest_peclet_make_mass_backend hook, else peclet's "
-     "quadrature)"),
+) + tuple((fam.option, "MODULE:FACTORY", f"{fam.name} engine to certify: factory() returns "
+                 f"{fam.engine}; else the {fam.hook} hook") for fam in F.ENGINES) + (
+    (F.DEADLINE_OPTION, "SECONDS",
+     "deadline of each call of an engine running in this process (default 300); a call that "
+     "misses it fails its certificate"),
 )
+
+# the engines' session fixtures, one per family record (peclet_backend, peclet_mass_backend,
+# peclet_dem_backend): module attributes, so that pytest registers them with this plugin
+for _fam in F.ENGINES:
+    globals()[_fam.fixture] = F.session_fixture(_fam)
 
 _NEEDS_CERTIFY = tuple(flag for flag, _, _ in _OPTIONS[1:])
 
@@ -122,10 +133,7 @@ def _check_options(config):
         path = config.getoption("--peclet-xfails")
         if path is not None:
             state["waivers"] = R.load_xfails(path, R.KNOWN_CERTIFICATES)
-        spec = config.getoption("--peclet-backend")
-        if spec is not None:
-            _check_backend_spec(spec)
-        check_family_options(config)  # --peclet-dem-backend, --peclet-mass-backend
+        F.check_backend_options(config)  # every family's engine option, the deadline
         replay = config.getoption("--peclet-replay")
         if replay is not None:
             from .profiles import check_replay_dir
@@ -149,16 +157,6 @@ def _count_examples(path) -> int:
     return n
 
 
-def _check_backend_spec(spec):
-    from .backends import parse_backend_spec
-    try:
-        parsed = parse_backend_spec(spec)
-    except ValueError as exc:
-        raise ValueError(f"--peclet-backend: {exc}") from None
-    if parsed is not None:
-        check_module_found("--peclet-backend", spec, parsed[0])
-
-
 def pytest_configure(config):
     config.addinivalue_line("markers", "peclet_certify: a certification property; runs only "
                                        "with --peclet-certify")
@@ -166,7 +164,7 @@ def pytest_configure(config):
     config.stash[_STATE] = state
     config.pluginmanager.register(_Collector(state["rows"]), "peclet-certificates")
     if config.getoption("--peclet-certify"):
-        from . import properties as P
+        from . import search as P
         from .profiles import make_settings
         name = config.getoption("--peclet-profile") or "dev"
         replay = config.getoption("--peclet-replay")
@@ -177,7 +175,7 @@ def pytest_configure(config):
 
 def pytest_unconfigure(config):
     import sys
-    props = sys.modules.get("peclet_verify.properties")  # not imported: nothing to undo
+    props = sys.modules.get("peclet_verify.search")  # not imported: nothing to undo
     if props is not None:
         props.set_progress(None)
         props.set_profile(None)
@@ -220,32 +218,6 @@ def _peclet_jit_warm():
     b.add_instance(c)
     b.eval_scene(pts, method="pruned")
     b.eval_scene(pts, method="brute")
-
-
-@pytest.fixture(scope="session")
-def peclet_backend(pytestconfig):
-    """The engine under certification: ``--peclet-backend`` if given, else what a
-    ``pytest_peclet_make_backend`` hook returns, else the reference engine."""
-    from .backends import ReferenceBackend, check_backend, load_backend
-    spec = pytestconfig.getoption("--peclet-backend")
-    # A backend that cannot be made is the session's problem, not each test's: stop once,
-    # with one line naming where the backend came from (the option, or the hook).
-    if spec:
-        try:
-            backend = load_backend(spec)
-        except ValueError as exc:
-            pytest.exit(f"--peclet-backend: {exc}", returncode=4)
-    else:
-        try:
-            backend = pytestconfig.hook.pytest_peclet_make_backend(config=pytestconfig)
-            backend = ReferenceBackend() if backend is None else check_backend(backend)
-        except Exception as exc:  # whatever a downstream hook raises
-            pytest.exit(f"pytest_peclet_make_backend: {type(exc).__name__}: {exc}",
-                        returncode=4)
-    yield backend
-    close = getattr(backend, "close", None)
-    if callable(close):
-        close()
 
 
 @pytest.fixture
@@ -315,6 +287,13 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
                       red=v == "FAILED", green=v == "PASSED",
                       yellow=v in ("UNAVAILABLE", "N/A", "WAIVED", "NOT CLAIMED"))
     for c in state["rows"]:
+        details = c.get("details") or {}
+        notes = [f"{label} {details[key]:g}" if isinstance(details[key], float) else
+                 f"{label}: {details[key]}" for key, label in VERDICT_NOTES.items()
+                 if key in details]
+        if notes:
+            tr.write_line(f"{c['name']} ({details.get('backend', '-')}): " + "; ".join(notes))
+    for c in state["rows"]:
         if c["status"] == "failed":
             tr.write_sep("-", f"counterexample: {c['name']}" +
                          (f" (waived: {c['waived']})" if c.get("waived") else ""))
@@ -332,12 +311,6 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
             tr.write_line(line, red="REGRESSED" in line)
 
 
-def _backend_label(config) -> str:
-    spec = config.getoption("--peclet-backend")
-    if spec:
-        return spec
-    hooked = config.hook.pytest_peclet_make_backend.get_hookimpls()
-    return "pytest_peclet_make_backend hook" if hooked else "reference"
 
 
 def pytest_sessionfinish(session, exitstatus):
@@ -368,7 +341,8 @@ def pytest_sessionfinish(session, exitstatus):
         regressions = state["compare"][0] if state["compare"] else None
         write_report(state["report"], {
             "profile": state["profile"],
-            "backend": _backend_label(config),
+            "backend": F.backend_label(config, REG.family("geometry")),
+            "backends": {fam.name: F.backend_label(config, fam) for fam in REG.FAMILIES},
             "certificates": rows,
             "waivers": [dict(w.to_dict(), applied=sum(1 for c in rows if c.get("waived")
                                                       and w.matches(c)))

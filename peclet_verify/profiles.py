@@ -4,7 +4,7 @@ Each profile sets ``derandomize``, ``database``, ``deadline`` and ``print_blob``
 inherits nothing else from the process: its parent is Hypothesis's built-in ``default``
 profile, not whatever profile is loaded (Hypothesis loads its own ``ci`` profile when the
 ``CI`` variable is set, which would make a nightly run derandomised and forgetful). The
-settings objects are handed to the certificate searches only (:func:`peclet_verify.properties.
+settings objects are handed to the certificate searches only (:func:`peclet_verify.search.
 search` uses the active one); no profile is ever loaded globally, so a project's own Hypothesis
 tests keep their settings.
 

@@ -1,26 +1,85 @@
-"""The one list of peclet's certificates: each registered once with its family, its property id,
-its title (the name a report lists) and the label of its worst figure. Stdlib only: the plugin
+"""The one list of peclet's certificate families and certificates. Stdlib only: the plugin
 reads it at configure time, before the engine is imported.
 
-Everything that names certificates derives from here: the report's lists and the names an
-xfails file may use (:mod:`peclet_verify.report`), the titles the suites search under
-(:mod:`peclet_verify.suite`, :mod:`peclet_verify.dem_suite`, :mod:`peclet_verify.mass_suite`,
-``properties/``) and the figure labels the properties report (:func:`figure`).
+:data:`FAMILIES` holds one :class:`Family` record per family (``geometry``: Equation 1, sign
+and distance agreement; ``mass``: quadrature against the closed forms of the leaf table;
+``dem``: determinism, contact buffers; ``mechanics``: closed-form mechanics of any DEM engine):
+the subpackage ``peclet_verify.<name>`` holding it, its pytest option, hook and fixture, its
+backend module and its suite module. The pytest plugin (:mod:`peclet_verify.plugin`,
+:mod:`peclet_verify.fixtures`) is driven by these records.
 
-Families: ``geometry`` (Equation 1, sign and distance agreement), ``mass properties``
-(quadrature against the closed forms of the leaf table), ``dem`` (determinism, contact
-buffers) and ``mechanics`` (closed-form mechanics of any DEM engine). Scopes say what a
-certificate judges: ``suite`` an engine plugged in as a geometry backend, ``repo`` peclet
+:data:`CERTIFICATES` registers each certificate once with its family, its property id, its
+title (the name a report lists) and the label of its worst figure. Everything that names
+certificates derives from here: the report's lists and the names an xfails file may use
+(:mod:`peclet_verify.report`), the titles the suites search under (each family's ``suite``,
+``properties/``) and the figure labels the properties report (:func:`figure`). Scopes say what
+a certificate judges: ``suite`` an engine plugged in as a geometry backend, ``repo`` peclet
 itself, ``dem`` a DEM backend, ``mass`` a mass-property backend.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Certificate", "FAMILIES", "SCOPES", "FIGURES", "CERTIFICATES", "certificate",
-           "title", "titles", "properties", "figure", "known_names"]
+__all__ = ["Family", "FAMILIES", "FAMILY_NAMES", "family", "Certificate", "SCOPES", "FIGURES",
+           "CERTIFICATES", "certificate", "title", "titles", "properties", "figure",
+           "known_names"]
 
-FAMILIES = ("geometry", "mass properties", "dem", "mechanics")
+
+@dataclass(frozen=True)
+class Family:
+    """One certificate family, held by the subpackage ``peclet_verify.<name>``.
+
+    ``option`` the pytest option naming the engine to certify (``"module:factory"``),
+    ``hook`` the hook a ``conftest.py`` implements to return it (:mod:`peclet_verify.hooks`),
+    ``fixture`` the session fixture that provides it to the suite, ``backend`` the module with
+    the family's protocol and its ``load_backend(spec, option)``, ``check_backend(backend)``
+    and ``default_backend()``, ``suite`` the test module a downstream project imports, and
+    ``engine`` what the option's factory returns (its help text). Families that certify the
+    same engine (dem and mechanics) share the option, hook, fixture and backend module.
+    """
+
+    name: str
+    option: str
+    hook: str
+    fixture: str
+    backend: str
+    suite: str
+    engine: str
+
+    @property
+    def package(self) -> str:
+        return f"peclet_verify.{self.name}"
+
+
+#: Every family, in report order.
+FAMILIES = (
+    Family("geometry", "--peclet-backend", "pytest_peclet_make_backend", "peclet_backend",
+           "peclet_verify.geometry.backend", "peclet_verify.geometry.suite",
+           "an object with evaluate(node_ints, node_reals, root, points) (default: the "
+           "reference engine)"),
+    Family("mass", "--peclet-mass-backend", "pytest_peclet_make_mass_backend",
+           "peclet_mass_backend", "peclet_verify.mass.backend", "peclet_verify.mass.suite",
+           "an object with mass_properties(...), resolutions and order (default: peclet's "
+           "quadrature)"),
+    Family("dem", "--peclet-dem-backend", "pytest_peclet_make_dem_backend",
+           "peclet_dem_backend", "peclet_verify.dem.backend", "peclet_verify.dem.suite",
+           "an object with run(scenario, threads) (default: peclet.dem)"),
+    Family("mechanics", "--peclet-dem-backend", "pytest_peclet_make_dem_backend",
+           "peclet_dem_backend", "peclet_verify.mechanics.backend",
+           "peclet_verify.mechanics.suite",
+           "an object with run(scenario, threads) (default: peclet.dem)"),
+)
+FAMILY_NAMES = tuple(f.name for f in FAMILIES)
+
+
+def family(name: str) -> Family:
+    """The family record named ``name`` (KeyError naming the families otherwise)."""
+    for f in FAMILIES:
+        if f.name == name:
+            return f
+    raise KeyError(f"no family {name!r}; registered: {', '.join(FAMILY_NAMES)}")
+
+
 SCOPES = ("suite", "repo", "dem", "mass")
 
 #: Worst-figure label -> (direction, compare factor, compare floor). Direction "max": larger
@@ -42,9 +101,9 @@ FIGURES = {
 
 @dataclass(frozen=True)
 class Certificate:
-    """One certificate: ``key`` (how code refers to it), ``family`` (:data:`FAMILIES`),
+    """One certificate: ``key`` (how code refers to it), ``family`` (:data:`FAMILY_NAMES`),
     ``scope`` (:data:`SCOPES`), ``prop`` (the property it searches, the name of its
-    :class:`~peclet_verify.properties.PropertyResult`), ``title`` (its name in reports) and
+    :class:`~peclet_verify.search.PropertyResult`), ``title`` (its name in reports) and
     ``figure`` (its worst-figure label, a key of :data:`FIGURES`)."""
 
     key: str
@@ -55,7 +114,7 @@ class Certificate:
     figure: str
 
     def __post_init__(self):
-        if self.family not in FAMILIES or self.scope not in SCOPES or \
+        if self.family not in FAMILY_NAMES or self.scope not in SCOPES or \
                 self.figure not in FIGURES:
             raise ValueError(f"certificate {self.key!r}: family {self.family!r}, scope "
                              f"{self.scope!r} or figure {self.figure!r} is not registered")
@@ -79,7 +138,7 @@ CERTIFICATES = (
        "distance agreement (backend vs reference)", "max |phi_a - phi_b|"),
     _c("distance_tree_walk", "geometry", "repo", "distance_agreement",
        "distance agreement (program vs tree walk)", "max |phi_a - phi_b|"),
-    _c("quadrature", "mass properties", "repo", "quadrature_convergence",
+    _c("quadrature", "mass", "repo", "quadrature_convergence",
        "quadrature convergence", "rel error"),
     _c("determinism", "dem", "repo", "determinism", "determinism (1 thread twice, 2 threads)",
        "distinct state hashes"),
@@ -97,7 +156,7 @@ CERTIFICATES = (
     _c("incline", "mechanics", "dem", "incline", "incline stick/slip", "error / allowed"),
     _c("free_rigid_body", "mechanics", "dem", "free_rigid_body", "free rigid body",
        "error / allowed"),
-    _c("mass_closed_forms", "mass properties", "mass", "mass_properties",
+    _c("mass_closed_forms", "mass", "mass", "mass_properties",
        "mass properties (closed forms)", "error / allowed"),
 )
 

@@ -4,7 +4,7 @@ option at configure time without importing the engine.
 
 A report is JSON: ``{"format": FORMAT, "profile", "backend", "certificates": [...],
 "waivers": [...], "compare": {...} or null}``; each certificate is a
-:class:`~peclet_verify.properties.PropertyResult` as a dict plus ``test`` (its node id) and
+:class:`~peclet_verify.search.PropertyResult` as a dict plus ``test`` (its node id) and
 ``waived`` (the reason, or null).
 """
 from __future__ import annotations
@@ -24,15 +24,15 @@ FORMAT = "peclet-certificates/1"
 # The lists below are views of the one registry (:mod:`peclet_verify.registry`).
 #: Property ids (an xfails file may name one for all of its certificates).
 PROPERTY_NAMES = REG.properties()
-#: The certificates :mod:`peclet_verify.suite` ships (they certify the backend).
+#: The certificates :mod:`peclet_verify.geometry.suite` ships (they certify the backend).
 SUITE_CERTIFICATES = REG.titles(scope="suite")
 #: The certificates this repository's ``properties/`` adds (they certify peclet itself).
 REPO_CERTIFICATES = REG.titles(scope="repo")
-#: The DEM and mechanics families' certificates (:mod:`peclet_verify.dem_suite`, any DEM
+#: The DEM and mechanics families' certificates (:mod:`peclet_verify.dem.suite`, :mod:`peclet_verify.mechanics.suite`, any DEM
 #: backend) and their properties.
 DEM_CERTIFICATES = REG.titles(scope="dem")
 DEM_PROPERTY_NAMES = REG.properties(scope="dem")
-#: The mass-property family's certificate (:mod:`peclet_verify.mass_suite`).
+#: The mass-property family's certificate (:mod:`peclet_verify.mass.suite`).
 MASS_CERTIFICATES = REG.titles(scope="mass")
 #: Names an xfails file may use: a certificate's name or a property's (all its certificates).
 KNOWN_CERTIFICATES = REG.known_names()

@@ -1,24 +1,41 @@
-"""Numpy-array message framing for out-of-process backends (stdlib + numpy only).
+"""The wire protocol between a certifier and an engine in a child process (stdlib + numpy
+only): numpy-array message framing, and the child's request loop for every family.
 
 This module is deliberately free of any ``peclet`` import, so a child process in another
 interpreter or virtual environment (one whose ``peclet`` is a different engine) can load it by
-file path and serve its engine. A message is an 8-byte little-endian count of arrays followed by,
-per array, an 8-byte length and the bytes ``np.save`` writes (``allow_pickle=False``).
+file path (with :mod:`peclet_verify.scenario`, which it needs for DEM runs) and serve its
+engine. A message is an 8-byte little-endian count of arrays followed by, per array, an
+8-byte length and the bytes ``np.save`` writes (``allow_pickle=False``).
 
 Requests: ``[method name (str array), *args]``. Replies: ``["ok", *results]`` or
-``["error", message]``. Methods: ``evaluate(node_ints, node_reals, root, points) -> phi``,
-``evaluate_grad(...) -> (phi, grad)``, ``bound(node_ints, node_reals, root) -> (centre, radius,
-certified)``, ``methods() -> names``, ``close``.
+``["error", message]``. Methods:
+
+- ``methods`` -> ``[names, declared JSON]``: what the child serves, and the engines' declared
+  attributes (a DEM engine's ``thread_counts``, ``thread_determinism``; a mass engine's
+  ``resolutions``, ``order``, ``constant``, ``floor``; their names);
+- geometry: ``evaluate(node_ints, node_reals, root, points) -> phi``, ``evaluate_grad(...) ->
+  (phi, grad)``, ``bound(node_ints, node_reals, root) -> (centre, radius, certified)``;
+- dem: ``run(scenario JSON, threads) -> [names, *arrays]`` (the recorded trajectory);
+- mass: ``mass_properties(node_ints, node_reals, root, lo, hi, resolution) -> [volume, com,
+  inertia, claimed]`` (``claimed``: ``[volume_error, moment_error]``, NaN where not claimed);
+- ``close``.
 """
 from __future__ import annotations
 
 import io
+import json
 import struct
 import sys
 import traceback
 
 import numpy as np
 
+if __package__:
+    from .scenario import Scenario
+else:  # loaded by file path in a child: its folder is on sys.path
+    from scenario import Scenario
+
+#: The geometry methods a child may serve.
 METHODS = ("evaluate", "evaluate_grad", "bound")
 
 
@@ -51,12 +68,62 @@ def read_message(stream) -> list:
     return out
 
 
-def serve(backend, stdin=None, stdout=None) -> None:
-    """Answer requests for ``backend`` on binary ``stdin``/``stdout`` until EOF or ``close``.
+def declared(geometry=None, dem=None, mass=None) -> dict:
+    """The attributes the engines declare, as sent with ``methods``."""
+    decl = {}
+    if geometry is not None:
+        decl["geometry_name"] = str(getattr(geometry, "name", type(geometry).__name__))
+    if dem is not None:
+        decl["thread_counts"] = list(getattr(dem, "thread_counts", (1, 2)))
+        decl["thread_determinism"] = bool(getattr(dem, "thread_determinism", True))
+        decl["dem_name"] = str(getattr(dem, "name", type(dem).__name__))
+    if mass is not None:
+        decl["resolutions"] = [float(r) for r in mass.resolutions]
+        decl["order"] = float(mass.order)
+        for key in ("constant", "floor"):
+            c = getattr(mass, key, None)
+            decl[key] = None if c is None else float(c)
+        decl["mass_name"] = str(getattr(mass, "name", type(mass).__name__))
+    return decl
 
-    ``backend`` implements ``evaluate`` and optionally ``evaluate_grad`` and ``bound``.
-    Anything the backend prints goes to stderr, so it cannot corrupt the stream.
-    """
+
+def answer(msg, geometry=None, dem=None, mass=None) -> list:
+    """The reply arrays (after ``"ok"``) to request ``msg``; raises for an unknown method."""
+    method = str(msg[0])
+    if method == "methods":
+        names = [m for m in METHODS if geometry is not None and hasattr(geometry, m)]
+        names += [n for n, o in (("run", dem), ("mass_properties", mass)) if o is not None]
+        return [np.array(names or [""]), np.array(json.dumps(declared(geometry, dem, mass)))]
+    if method in METHODS and geometry is not None and hasattr(geometry, method):
+        ni, nr, root = msg[1], msg[2], int(msg[3])
+        args = (ni, nr, root) + ((msg[4],) if method != "bound" else ())
+        res = getattr(geometry, method)(*args)
+        return [np.asarray(r) for r in (list(res) if isinstance(res, tuple) else [res])]
+    if method == "run" and dem is not None:
+        traj = dem.run(Scenario.from_json(str(msg[1])), int(msg[2]))
+        names = sorted(traj)
+        return [np.array(names)] + [np.asarray(traj[k]) for k in names]
+    if method == "mass_properties" and mass is not None:
+        ni, nr, root, lo, hi, res = msg[1], msg[2], int(msg[3]), msg[4], msg[5], float(msg[6])
+        ans = mass.mass_properties(ni, nr, root, lo, hi, res)
+        claimed = np.full(2, np.nan)
+        if len(ans) > 3 and ans[3] is not None:
+            c = ans[3]
+            if isinstance(c, dict):
+                claimed[:] = [c.get("volume", np.nan), c.get("inertia", np.nan)]
+            else:
+                claimed[0] = float(c)
+        return [np.asarray(ans[0], float), np.asarray(ans[1], float),
+                np.asarray(ans[2], float), claimed]
+    raise ValueError(f"unknown method {method!r}")
+
+
+def serve(geometry=None, dem=None, mass=None, stdin=None, stdout=None) -> None:
+    """Answer requests until EOF or ``close``: ``geometry`` has ``evaluate`` (optionally
+    ``evaluate_grad``, ``bound``); ``dem`` has ``run(scenario, threads) -> trajectory dict``;
+    ``mass`` has ``mass_properties(ni, nr, root, lo, hi, resolution)`` and declares
+    ``resolutions`` and ``order``. Anything the engines print goes to stderr, so it cannot
+    corrupt the stream; an engine's exception is sent to the parent, which raises it there."""
     stdin = sys.stdin.buffer if stdin is None else stdin
     stdout = sys.stdout.buffer if stdout is None else stdout
     sys.stdout = sys.stderr
@@ -65,20 +132,12 @@ def serve(backend, stdin=None, stdout=None) -> None:
             msg = read_message(stdin)
         except EOFError:
             return
-        method = str(msg[0])
-        if method == "close":
+        if str(msg[0]) == "close":
             write_message(stdout, ["ok"])
             return
         try:
-            if method == "methods":
-                reply = [np.array([m for m in METHODS if hasattr(backend, m)] or [""])]
-            elif method in METHODS and hasattr(backend, method):
-                ni, nr, root = msg[1], msg[2], int(msg[3])
-                args = (ni, nr, root) + ((msg[4],) if method != "bound" else ())
-                res = getattr(backend, method)(*args)
-                reply = list(res) if isinstance(res, tuple) else [res]
-            else:
-                raise ValueError(f"unknown method {method!r}")
-            write_message(stdout, ["ok"] + [np.asarray(r) for r in reply])
+            reply = answer(msg, geometry, dem, mass)
         except Exception:  # reported to the parent, which raises it there
             write_message(stdout, ["error", traceback.format_exc()])
+        else:
+            write_message(stdout, ["ok"] + reply)

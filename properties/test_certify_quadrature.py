@@ -10,9 +10,10 @@ import math
 
 import pytest
 
-from peclet_verify import properties as P
 from peclet_verify import registry as REG
-from peclet_verify import strategies as pst
+from peclet_verify import search as S
+from peclet_verify.mass import properties as MP
+from peclet_verify.mass import strategies as MS
 from peclet_verify.profiles import SHARDS
 
 pytestmark = pytest.mark.peclet_certify
@@ -20,10 +21,10 @@ pytestmark = pytest.mark.peclet_certify
 
 @pytest.mark.parametrize("shard", range(1, SHARDS + 1))
 def test_quadrature_convergence(peclet_certificate, shard):
-    share = math.ceil(P.active_settings().max_examples / SHARDS)
-    peclet_certificate(P.search(
-        lambda r: P.quadrature_convergence(r),
-        pst.closed_form_solids(pst.CLOSED_FORM_KINDS),
+    share = math.ceil(S.active_settings().max_examples / SHARDS)
+    peclet_certificate(S.search(
+        lambda r: MP.quadrature_convergence(r),
+        MS.closed_form_solids(MS.CLOSED_FORM_KINDS),
         name=f"{REG.title('quadrature')} [shard {shard}/{SHARDS}]",
-        settings=P.profile_settings(max_examples=share)))
+        settings=S.profile_settings(max_examples=share)))
 

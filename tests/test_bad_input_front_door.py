@@ -373,12 +373,12 @@ def test_connect_api_bounds_the_handshake():
 CERT = textwrap.dedent('''
     import pytest
     from hypothesis import strategies as st
-    from peclet_verify import properties as P
+    from peclet_verify import search as S
 
     @pytest.mark.peclet_certify
     def test_small(peclet_certificate):
-        peclet_certificate(P.search(
-            lambda x: P.PropertyResult("small", x < 10 ** 7, 1, float(x), "x", f"x = {x}",
+        peclet_certificate(S.search(
+            lambda x: S.PropertyResult("small", x < 10 ** 7, 1, float(x), "x", f"x = {x}",
                                        "passed"),
             st.integers(0, 10 ** 6), name="small numbers"))
 ''')

@@ -10,8 +10,9 @@ import pytest
 from peclet.core.validation import PecletArgumentError
 from peclet_verify import planted
 from peclet_verify import report as R
-from peclet_verify.answers import ask, ask_bound
-from peclet_verify.backends import SubprocessBackend, load_backend, parse_backend_spec
+from peclet_verify.geometry.answers import ask, ask_bound
+from peclet_verify.geometry.backend import SubprocessBackend, load_backend
+from peclet_verify.loading import parse_backend_spec
 from peclet_verify.profiles import make_settings
 
 

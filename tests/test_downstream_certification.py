@@ -122,7 +122,7 @@ def test_xfails_naming_an_unknown_certificate_is_a_one_line_error(tmp_path):
 
 def _sample(builder, root, n, seed):
     """Points in the cube around the root's ball, half of them pulled near the surface."""
-    from peclet_verify.strategies import surface_points
+    from peclet_verify.geometry.strategies import surface_points
     rng = np.random.default_rng(seed)
     c, r, _ = builder.node_bound(root)
     raw = np.asarray(c) + rng.uniform(-1.3, 1.3, (n, 3)) * r
@@ -223,14 +223,14 @@ def side_venv(variable, packages):
 
 
 def wheel_dem(venv):
-    from peclet_verify.dem_backends import SubprocessDemBackend, wheel_dem_child_command
-    return SubprocessDemBackend(wheel_dem_child_command(os.path.join(venv, "bin", "python")),
+    from peclet_verify.dem.backend import SubprocessDemBackend, wheel_child_command
+    return SubprocessDemBackend(wheel_child_command(os.path.join(venv, "bin", "python")),
                                 env={"OMP_PROC_BIND": "false"}, timeout=300)
 
 
 def mujoco_dem(venv):
-    import peclet_verify.family_wire as fw
-    from peclet_verify.dem_backends import SubprocessDemBackend
+    import peclet_verify.wire as fw
+    from peclet_verify.dem.backend import SubprocessDemBackend
     return SubprocessDemBackend([os.path.join(venv, "bin", "python"),
                                  os.path.join(MUJOCO, "mujoco_child.py")],
                                 env={"PECLET_VERIFY_DIR": os.path.dirname(fw.__file__)},
@@ -263,13 +263,13 @@ def test_mujoco_fixed_arena_is_the_buffer_capacity_case():
     """The shrunk counterexample of the ci run: 6 spheres poured with a contact hint of 1
     (an arena of 22 KiB). MuJoCo cannot grow its arena: the run stops at the step that needs
     the sixth contact, and the certificate fails saying so; ample hints run the pour."""
-    from peclet_verify import properties as P
-    from peclet_verify import strategies as pst
+    from peclet_verify.dem import properties as DP
+    from peclet_verify.dem import strategies as DS
     be = mujoco_dem(side_venv(MUJOCO_VENV, "mujoco"))
     try:
-        pour = pst.Pour((0.05,) * 6, ((0, 0, 0),) * 6, ((0.0, 0.0, 0.0),) * 6, 0.0, 0.0)
-        res = P.dem_buffer_growth(be, pour, [(1, 1)])
-        ample, why = P.run_checked(be, pst.pour_scenario(pour, contact_capacity=4096))
+        pour = DS.Pour((0.05,) * 6, ((0, 0, 0),) * 6, ((0.0, 0.0, 0.0),) * 6, 0.0, 0.0)
+        res = DP.dem_buffer_growth(be, pour, [(1, 1)])
+        ample, why = DP.run_checked(be, DS.pour_scenario(pour, contact_capacity=4096))
     finally:
         be.close()
     assert not res.passed and "mj_stackAlloc: out of memory" in res.counterexample
@@ -292,11 +292,11 @@ def test_upstream_dem_certification(tmp_path):
 def test_upstream_dem_rolls_with_a_unit_lever_arm(radius):
     """The slide-to-roll finding: the wheel's sphere ends rolling at omega * (1 m) = v. For
     r = 1 that is the right 5/7 v0; for r = 0.5 it stops sliding early, omega = v (not 2 v)."""
-    from peclet_verify import properties as P
-    from peclet_verify import strategies as pst
+    from peclet_verify.mechanics import properties as XP
+    from peclet_verify.mechanics import strategies as XS
     be = wheel_dem(side_venv(UPSTREAM_VENV, "peclet-dem==1.1.0"))
     try:
-        res = P.slide_to_roll(be, pst.Roll(radius, 1.0, 2.0, 0.4))
+        res = XP.slide_to_roll(be, XS.Roll(radius, 1.0, 2.0, 0.4))
     finally:
         be.close()
     v, omega = res.details["v"], res.details["omega_r"] / radius

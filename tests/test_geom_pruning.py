@@ -18,7 +18,7 @@ from peclet.core.geom.pruning import (_combine, _decide, _lookup_ranges, bake_pr
                                       evaluate_pruned, lookup_ranges)
 from peclet.core.validation import PecletArgumentError
 from peclet.dem import distgrid
-from peclet_verify import strategies as pst
+from peclet_verify.geometry import strategies as GS
 
 import page_steps
 
@@ -190,7 +190,7 @@ def test_non_lipschitz_leaf_never_pruned(kind, params):
 
 
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(recipe=pst.trees(max_leaves=7), n_blocks=st.integers(1, 9), seed=st.integers(0, 99))
+@given(recipe=GS.trees(max_leaves=7), n_blocks=st.integers(1, 9), seed=st.integers(0, 99))
 def test_random_trees_bitwise(recipe, n_blocks, seed):
     b, root = recipe.build()
     prog = b.program(root)

@@ -5,8 +5,8 @@ certificate, so they live here and not among the certificates in properties/.)""
 import numpy as np
 import pytest
 
-from peclet_verify import properties as P
-from peclet_verify import strategies as pst
+from peclet_verify.geometry import strategies as GS
+from peclet_verify.mass import properties as MP
 
 
 # The fixed set covers each closed-form kind, turned,
@@ -14,7 +14,7 @@ from peclet_verify import strategies as pst
 # refined cells are shared too) and an ellipsoid (not 1-Lipschitz: no cell is skipped).
 _TURN = (0.0, 0.3826834323650898, 0.0, 0.9238795325112867)      # 45 degrees about y
 _TILT = (0.43118496557631325, 0.20504077712179916, 0.011061957500049454, 0.8785871830811722)
-FIXED = tuple(pst.TreeRecipe(pst.LeafCall(kind, params, pst.Transform(*tr)))
+FIXED = tuple(GS.TreeRecipe(GS.LeafCall(kind, params, GS.Transform(*tr)))
               for kind, params, tr in (
     ("sphere", (0.9,), ((0.1, -0.2, 0.3), _TURN, 1.3)),
     ("box", (0.7574911184666108, 0.3333333333333333, 0.46788019249360036),
@@ -38,7 +38,7 @@ def _box(recipe):
 @pytest.mark.heavy
 def test_shared_levels_are_bitwise_the_separate_ones(monkeypatch):
     from peclet.core.geom.quadrature import refine
-    from peclet_verify.properties.mass import reference_measure
+    from peclet_verify.mass.properties import reference_measure
     counted = {"n": 0}
     integrate = refine.integrate_cells
 
@@ -76,8 +76,8 @@ def test_fast_certificate_gives_the_same_verdicts():
         # ellipsoid: it costs as much as the rest together)
         for kw in ({}, {"rtol": 1e-9, "slack": 0.05})[:1 if recipe.kinds == ("ellipsoid",)
                                                         else 2]:
-            ref = P.quadrature_convergence(recipe, fast=False, **kw)
-            fast = P.quadrature_convergence(recipe, **kw)
+            ref = MP.quadrature_convergence(recipe, fast=False, **kw)
+            fast = MP.quadrature_convergence(recipe, **kw)
             assert (fast.status, fast.worst, fast.worst_name, fast.counterexample,
                     fast.details) == (ref.status, ref.worst, ref.worst_name,
                                       ref.counterexample, ref.details), (recipe, kw)
@@ -105,8 +105,8 @@ def test_planted_cell_bias_fails_both_paths(monkeypatch):
         return mom, err, code
     monkeypatch.setattr(refine, "integrate_cells", biased)
     for recipe in FIXED[:2]:
-        ref = P.quadrature_convergence(recipe, fast=False)
-        fast = P.quadrature_convergence(recipe)
+        ref = MP.quadrature_convergence(recipe, fast=False)
+        fast = MP.quadrature_convergence(recipe)
         assert ref.status == fast.status == "failed", (recipe, ref, fast)
         assert (fast.worst, fast.worst_name, fast.counterexample) == \
             (ref.worst, ref.worst_name, ref.counterexample)

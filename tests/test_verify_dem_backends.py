@@ -8,18 +8,22 @@ import sys
 import numpy as np
 import pytest
 
-from peclet_verify import mechanics as M
-from peclet_verify.dem_backends import (PageApiBackend, PecletDemBackend, SubprocessDemBackend,
-                                        load_dem_backend, peclet_dem_child_command)
-from peclet_verify.family_wire import Scenario
+from peclet_verify import search as S
+from peclet_verify.dem import properties as DP
+from peclet_verify.dem import strategies as DS
+from peclet_verify.dem.backend import (PageApiBackend, PecletDemBackend, SubprocessDemBackend,
+                                       child_command, load_backend)
+from peclet_verify.mechanics import properties as XP
+from peclet_verify.mechanics import strategies as XS
 from peclet_verify.report import DEM_CERTIFICATES, MASS_CERTIFICATES, load_report
+from peclet_verify.scenario import Scenario
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEM_FILE = os.path.join(ROOT, "properties", "test_certify_dem_backend.py")
 MASS_FILE = os.path.join(ROOT, "properties", "test_certify_mass.py")
-POUR = M.Pour(radii=(0.1, 0.05, 0.1, 0.1, 0.05), jitter=((1, 0, -2),) * 5,
+POUR = DS.Pour(radii=(0.1, 0.05, 0.1, 0.1, 0.05), jitter=((1, 0, -2),) * 5,
               velocities=((0.5, 0.0, 0.0),) * 5, e=0.3, mu=0.4, steps=40)
-COLLISION = M.Collision((0.2, 0.3), (1.0, 0.4), (1.0, 0.5), (1.0, 1.0, 0.0), 0.5, 0.3)
+COLLISION = XS.Collision((0.2, 0.3), (1.0, 0.4), (1.0, 0.5), (1.0, 1.0, 0.0), 0.5, 0.3)
 
 
 def certify(tmp_path, files, *options, env=None):
@@ -35,7 +39,7 @@ def certify(tmp_path, files, *options, env=None):
 
 
 def test_scenario_json_round_trip_is_exact_and_checked():
-    sc = M.pour_scenario(POUR)
+    sc = DS.pour_scenario(POUR)
     back = Scenario.from_json(sc.to_json())
     assert back.to_json() == sc.to_json() and back.calls == sc.calls
     assert eval(repr(sc), {"Scenario": Scenario}).to_json() == sc.to_json()
@@ -54,9 +58,9 @@ def test_snippet_is_runnable_page_api_and_reproduces_the_run(capsys):
 
 
 def test_child_process_backend_gives_the_in_process_bytes():
-    sc = M.pour_scenario(POUR)
+    sc = DS.pour_scenario(POUR)
     here = PecletDemBackend().run(sc, 1)
-    be = SubprocessDemBackend(peclet_dem_child_command(), timeout=300)
+    be = SubprocessDemBackend(child_command(), timeout=300)
     try:
         assert be.thread_counts and be.thread_determinism is True
         there = be.run(sc, 1)
@@ -80,7 +84,7 @@ def test_unusable_answers_fail_with_the_answer_shown():
             out["velocities"][-1, 0, 0] = np.nan
             return out
     be = Nan(PecletDemBackend().make_simulation, name="nan-engine")
-    res = M.binary_restitution(be, COLLISION)
+    res = XP.binary_restitution(be, COLLISION)
     assert res.status == "failed" and "non-finite" in res.counterexample
     assert "nan-engine" in res.counterexample
 
@@ -89,26 +93,26 @@ def test_unusable_answers_fail_with_the_answer_shown():
 
         def run(self, scenario, threads=1):
             raise RuntimeError("boom")
-    res = M.determinism_one_thread(Raises(), POUR)
+    res = DP.determinism_one_thread(Raises(), POUR)
     assert res.status == "failed" and "raised RuntimeError: boom" in res.counterexample
 
 
 def test_thread_determinism_not_claimed_is_reported_never_passed():
     be = PecletDemBackend()
     be.thread_determinism = False
-    res = M.determinism_across_threads(be, POUR)
-    assert res.status == M.NOT_CLAIMED and not res.passed
+    res = DP.determinism_across_threads(be, POUR)
+    assert res.status == S.NOT_CLAIMED and not res.passed
 
 
 def test_load_dem_backend_names_the_option():
-    assert isinstance(load_dem_backend("reference"), PecletDemBackend)
+    assert isinstance(load_backend("reference"), PecletDemBackend)
     for spec, msg in (("no_colon", "--peclet-dem-backend must be"),
                       ("no_such_module_xyz:f", "--peclet-dem-backend 'no_such_module_xyz:f': "
                                                "cannot import"),
                       ("peclet_verify.planted:nope", "has no callable 'nope'"),
                       ("peclet_verify.planted:cell_quadrature", "raised TypeError")):
         with pytest.raises(ValueError, match=msg):
-            load_dem_backend(spec)
+            load_backend(spec)
 
 
 @pytest.mark.parametrize("option, value, shown", [
@@ -135,13 +139,13 @@ def test_hook_backend_and_a_broken_hook(tmp_path):
     session with one line naming the hook."""
     (tmp_path / "conftest.py").write_text(
         "def pytest_peclet_make_dem_backend(config):\n"
-        "    from peclet_verify.dem_backends import PecletDemBackend\n"
+        "    from peclet_verify.dem.backend import PecletDemBackend\n"
         "    be = PecletDemBackend()\n"
         "    be.name = 'from-the-hook'\n"
         "    be.thread_determinism = False\n"
         "    return be\n")
     (tmp_path / "test_dem.py").write_text(
-        "from peclet_verify.dem_suite import test_dem_determinism_across_threads  # noqa\n")
+        "from peclet_verify.dem.suite import test_dem_determinism_across_threads  # noqa\n")
     done, verdicts = certify(tmp_path, ["test_dem.py"])
     assert verdicts == {"determinism across threads (DEM backend)": "not claimed"}, \
         done.stdout[-2000:]

@@ -9,18 +9,17 @@ import numpy as np
 import pytest
 
 from peclet_verify import planted
-from peclet_verify import strategies as pst
-from peclet_verify.mass_backends import (PecletMassBackend, SubprocessMassBackend,
-                                         check_mass_backend, closed_form_world,
-                                         load_mass_backend, mass_child_command,
-                                         mass_properties_certificate)
+from peclet_verify.geometry import strategies as GS
+from peclet_verify.mass.backend import (PecletMassBackend, SubprocessMassBackend, check_backend,
+                                        child_command, load_backend)
+from peclet_verify.mass.properties import closed_form_world, mass_properties_certificate
 from peclet_verify.report import load_report
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MASS_FILE = os.path.join(ROOT, "properties", "test_certify_mass.py")
-TORUS = pst.TreeRecipe(pst.LeafCall("torus", (0.8, 0.3), pst.Transform(
+TORUS = GS.TreeRecipe(GS.LeafCall("torus", (0.8, 0.3), GS.Transform(
     (0.1, 0.2, -0.3), (0.0, 0.3826834323650898, 0.0, 0.9238795325112867), 1.3)))
-CAPSULE = pst.TreeRecipe(pst.LeafCall("capsule", (0.4, 0.3), pst.Transform(
+CAPSULE = GS.TreeRecipe(GS.LeafCall("capsule", (0.4, 0.3), GS.Transform(
     (0.3, 0.0, 0.1), (0.2, 0.0, 0.0, 0.9797958971132712), 0.8)))
 
 
@@ -62,7 +61,7 @@ def test_unusable_answers_fail_with_the_answer_shown():
 
 
 def test_child_process_mass_backend_answers_like_the_in_process_one():
-    be = SubprocessMassBackend(mass_child_command(), timeout=300)
+    be = SubprocessMassBackend(child_command(), timeout=300)
     try:
         assert be.resolutions == PecletMassBackend.resolutions and be.order == 1.0
         b, root = TORUS.build()
@@ -78,15 +77,15 @@ def test_child_process_mass_backend_answers_like_the_in_process_one():
 
 def test_check_and_load_name_what_is_missing():
     with pytest.raises(ValueError, match="must declare resolutions"):
-        check_mass_backend(type("E", (), {"mass_properties": lambda *a: None,
+        check_backend(type("E", (), {"mass_properties": lambda *a: None,
                                           "resolutions": (1e-3,), "order": 1.0})())
     with pytest.raises(ValueError, match="convergence order"):
-        check_mass_backend(type("E", (), {"mass_properties": lambda *a: None,
+        check_backend(type("E", (), {"mass_properties": lambda *a: None,
                                           "resolutions": (1e-3, 1e-4), "order": None})())
-    assert isinstance(load_mass_backend("reference"), PecletMassBackend)
+    assert isinstance(load_backend("reference"), PecletMassBackend)
     with pytest.raises(ValueError, match="--peclet-mass-backend 'peclet_verify.planted:"
                                          "nondeterministic_dem_backend'.*has none"):
-        load_mass_backend("peclet_verify.planted:nondeterministic_dem_backend")
+        load_backend("peclet_verify.planted:nondeterministic_dem_backend")
 
 
 @pytest.mark.heavy

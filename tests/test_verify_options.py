@@ -10,8 +10,8 @@ import textwrap
 
 import pytest
 
-from peclet_verify import properties as P
 from peclet_verify import report as R
+from peclet_verify import search as S
 from peclet_verify.profiles import PROFILES, SHARDS
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -19,14 +19,14 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FIXED = textwrap.dedent('''
     import os
     import pytest
-    from peclet_verify import properties as P
+    from peclet_verify import search as S
 
     @pytest.mark.peclet_certify
     def test_fixed_figure(peclet_certificate):
         # a certificate whose figure is set by the environment (planted regressions)
         figure = float(os.environ.get("FIGURE", "0.5"))
         ok = os.environ.get("FAIL") is None
-        peclet_certificate(P.PropertyResult("planted figure", ok, 1, figure,
+        peclet_certificate(S.PropertyResult("planted figure", ok, 1, figure,
                                             "rel error (volume)", "" if ok else "planted",
                                             "passed" if ok else "failed"))
 ''')
@@ -106,7 +106,7 @@ def test_profiles_mean_the_same_with_and_without_ci(tmp_path, ci):
 OWN_HYPOTHESIS = textwrap.dedent('''
     import pytest
     from hypothesis import given, settings, strategies as st
-    from peclet_verify import properties as P
+    from peclet_verify import search as S
 
     settings.register_profile("downstream", max_examples=7)
     settings.load_profile("downstream")
@@ -122,9 +122,9 @@ OWN_HYPOTHESIS = textwrap.dedent('''
 
     @pytest.mark.peclet_certify
     def test_cert(peclet_certificate):
-        s = P.active_settings()
+        s = S.active_settings()
         assert (s.max_examples, s.derandomize, s.database) == (40, True, None)
-        peclet_certificate(P.PropertyResult("c", True))
+        peclet_certificate(S.PropertyResult("c", True))
 ''')
 
 
@@ -166,7 +166,7 @@ def test_the_patched_hypothesis_internals_exist_and_the_patch_takes_effect(tmp_p
         original = providers._get_local_constants
         assert isinstance(providers.CONSTANTS_CACHE.cache, dict)
         assert 0.123456789 in providers._get_local_constants().floats
-        with P._fixed_constant_pool():
+        with S.fixed_constant_pool():
             assert providers._get_local_constants is not original
             inside = providers._get_local_constants()
             assert isinstance(inside, providers.Constants)
@@ -242,7 +242,7 @@ def test_every_figure_has_a_documented_tolerance():
 
 # ---------------------------------------------------------------------- hook and waivers
 HOOKED = textwrap.dedent('''
-    from peclet_verify.suite import *  # noqa: F401,F403
+    from peclet_verify.geometry.suite import *  # noqa: F401,F403
 ''')
 HOOK_CONFTEST = textwrap.dedent('''
     def pytest_peclet_make_backend(config):
@@ -319,12 +319,12 @@ def test_xdist_report_holds_every_certificate(tmp_path):
 SAVED = textwrap.dedent('''
     import pytest
     from hypothesis import strategies as st
-    from peclet_verify import properties as P
+    from peclet_verify import search as S
 
     @pytest.mark.peclet_certify
     def test_big_numbers(peclet_certificate):
-        peclet_certificate(P.search(
-            lambda x: P.PropertyResult("small", x < 1000, 1, float(x), "x",
+        peclet_certificate(S.search(
+            lambda x: S.PropertyResult("small", x < 1000, 1, float(x), "x",
                                        f"x = {x}", "passed" if x < 1000 else "failed"),
             st.integers(0, 10 ** 6), name="small numbers"))
 ''')
@@ -354,3 +354,26 @@ def test_replay_reruns_the_saved_failure_from_a_read_only_database(tmp_path):
     assert not (tmp_path / ".hypothesis").exists()
     line = _usage_line(_pytest(tmp_path, "--peclet-certify", "--peclet-replay=missing-db"))
     assert "--peclet-replay missing-db: not a directory" in line
+
+
+def test_every_family_record_names_what_the_plugin_and_a_downstream_project_use():
+    """Each Family of the registry: its option is the plugin's, its hook is specified, its
+    fixture is the plugin's, its backend module offers load/check/default and its suite
+    module exports certificate tests only (what ``from ... import *`` gives)."""
+    import importlib
+
+    from peclet_verify import hooks, plugin, registry
+    options = {flag for flag, _, _ in plugin._OPTIONS}
+    assert registry.FAMILY_NAMES == ("geometry", "mass", "dem", "mechanics")
+    for fam in registry.FAMILIES:
+        assert fam.package == f"peclet_verify.{fam.name}"
+        assert fam.option in options and callable(getattr(hooks, fam.hook))
+        assert getattr(plugin, fam.fixture)  # the session fixture, registered with the plugin
+        backend = importlib.import_module(fam.backend)
+        for name in ("load_backend", "check_backend", "default_backend"):
+            assert callable(getattr(backend, name)), (fam.name, name)
+        suite = importlib.import_module(fam.suite)
+        assert suite.__all__ and all(
+            n.startswith("test_") and getattr(suite, n).pytestmark[0].name == "peclet_certify"
+            for n in suite.__all__), fam.suite
+        assert set(registry.titles(family=fam.name)), fam.name

@@ -9,19 +9,20 @@ import pytest
 
 DOWNSTREAM = textwrap.dedent('''
     import pytest
-    from peclet_verify import properties as P
-    from peclet_verify import strategies as pst
+    from peclet_verify import search as S
+    from peclet_verify.geometry import properties as GP
+    from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify
     def test_my_engine_signs(peclet_certificate, peclet_backend):
-        peclet_certificate(P.search(lambda r: P.sign_agreement(r, backend=peclet_backend, n=32),
-                                    pst.trees(max_leaves=3), name="downstream sign agreement",
+        peclet_certificate(S.search(lambda r: GP.sign_agreement(r, backend=peclet_backend, n=32),
+                                    GS.trees(max_leaves=3), name="downstream sign agreement",
                                     # the profile's settings (ci: seeded by the name, a torus
                                     # by example 5), with more examples for margin
-                                    settings=P.profile_settings(max_examples=30)))
+                                    settings=S.profile_settings(max_examples=30)))
 
     def test_ordinary():
-        assert pst.TreeRecipe is not None
+        assert GS.TreeRecipe is not None
 ''')
 
 
@@ -62,11 +63,13 @@ def test_failing_certificate_exits_nonzero_with_snippet(tmp_path):
 LONG = textwrap.dedent('''
     import pytest
     from hypothesis import settings, strategies as st
-    from peclet_verify import properties as P
+    from peclet_verify import search as S
+    from peclet_verify.geometry import properties as GP
+    from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify
     def test_long(peclet_certificate):
-        peclet_certificate(P.search(lambda x: P.PropertyResult("long", True, 1, float(x), "x"),
+        peclet_certificate(S.search(lambda x: S.PropertyResult("long", True, 1, float(x), "x"),
                                     st.integers(0, 10 ** 9), name="a long one",
                                     settings=settings(max_examples=100, deadline=None)))
 ''')
@@ -105,20 +108,22 @@ def test_this_repo_properties_skip_without_flag():
 # -------------------------------------------------------------- run-order independence (ci)
 CERT_A = textwrap.dedent('''
     import pytest
-    from peclet_verify import properties as P
-    from peclet_verify import strategies as pst
+    from peclet_verify import search as S
+    from peclet_verify.geometry import properties as GP
+    from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify
     def test_a_equation1(peclet_certificate, peclet_backend):
         # no settings: the loaded profile (ci) decides examples and seed
-        peclet_certificate(P.search(lambda r: P.equation1(r, peclet_backend, n=32),
-                                    pst.trees(certified_only=True, max_leaves=3),
+        peclet_certificate(S.search(lambda r: GP.equation1(r, peclet_backend, n=32),
+                                    GS.trees(certified_only=True, max_leaves=3),
                                     name="a: equation1"))
 ''')
 CERT_B = textwrap.dedent('''
     import pytest
-    from peclet_verify import properties as P
-    from peclet_verify import strategies as pst
+    from peclet_verify import search as S
+    from peclet_verify.geometry import properties as GP
+    from peclet_verify.geometry import strategies as GS
 
     @pytest.mark.peclet_certify
     def test_b_sign(peclet_certificate):
@@ -126,8 +131,8 @@ CERT_B = textwrap.dedent('''
         # modules, and their source constants, into the process
         import peclet.dem  # noqa: F401
         import engine_b
-        peclet_certificate(P.search(lambda r: P.sign_agreement(r, n=16),
-                                    pst.trees(max_leaves=2), name="b: sign " + engine_b.NAME))
+        peclet_certificate(S.search(lambda r: GP.sign_agreement(r, n=16),
+                                    GS.trees(max_leaves=2), name="b: sign " + engine_b.NAME))
 ''')
 ENGINE_B = "NAME = 'b'\nCONSTANTS = (0.123456789, 0.3337, 0.77731, 1.2345e-3, 17, 4093)\n"
 

@@ -16,7 +16,7 @@ import peclet_verify
 
 HERE = os.path.dirname(os.path.abspath(peclet_verify.__file__))
 
-# the start-up of a wheel child (peclet_geom_child.py), then the import it exists for
+# the start-up of a wheel child (geometry/wheel_child.py), then the import it exists for
 CHILD = f"""
 import os, sys
 sys.path.insert(0, {HERE!r})
@@ -53,8 +53,7 @@ def test_the_child_drops_our_tree_and_imports_the_wheel(tmp_path):
 
 
 def test_every_wheel_child_applies_the_rule_before_importing_peclet():
-    for name in ("peclet_geom_child.py", "peclet_geom_mass_child.py",
-                 "peclet_dem_wheel_child.py"):
+    for name in ("geometry/wheel_child.py", "mass/wheel_child.py", "dem/wheel_child.py"):
         tree = ast.parse(open(os.path.join(HERE, name)).read())
         calls = [n.lineno for n in tree.body if isinstance(n, ast.Expr)
                  and ast.unparse(n.value) == "wheel_path.drop_this_project()"]

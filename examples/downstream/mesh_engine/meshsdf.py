@@ -33,7 +33,7 @@ _BLOCK = 1 << 19
 
 
 class MeshEngine:
-    """Backend protocol of :mod:`peclet_verify.backends`: ``evaluate(node_ints, node_reals,
+    """Backend protocol of :mod:`peclet_verify.geometry.backend`: ``evaluate(node_ints, node_reals,
     root, points) -> phi``. ``n``: lattice points per axis (resolution), an int >= 8."""
 
     def __init__(self, n: int = 40):

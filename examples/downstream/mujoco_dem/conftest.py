@@ -39,9 +39,9 @@ def pytest_collection_modifyitems(config, items):
 
 
 def pytest_peclet_make_dem_backend(config):
-    import peclet_verify.family_wire
-    from peclet_verify.dem_backends import SubprocessDemBackend
+    import peclet_verify.wire
+    from peclet_verify.dem.backend import SubprocessDemBackend
     python, _ = _python()
-    wire_dir = os.path.dirname(os.path.abspath(peclet_verify.family_wire.__file__))
+    wire_dir = os.path.dirname(os.path.abspath(peclet_verify.wire.__file__))
     return SubprocessDemBackend([python, os.path.join(HERE, "mujoco_child.py")],
                                 env={"PECLET_VERIFY_DIR": wire_dir}, timeout=600.0)

@@ -3,8 +3,8 @@ with the interpreter of a venv that has ``mujoco``; it needs numpy and mujoco on
 
     PECLET_VERIFY_DIR=... python mujoco_child.py
 
-``PECLET_VERIFY_DIR`` (environment) is the folder of peclet_verify, whose ``family_wire.py``
-and ``wire.py`` are loaded by file path (this interpreter has no peclet). The scenario's
+``PECLET_VERIFY_DIR`` (environment) is the folder of peclet_verify, whose ``wire.py``
+and ``scenario.py`` are loaded by file path (this interpreter has no peclet). The scenario's
 calls are collected and the MJCF model is compiled at the first step (MuJoCo models are
 compiled, not grown).
 
@@ -59,7 +59,8 @@ import numpy as np
 
 if __name__ == "__main__":
     sys.path.insert(0, os.environ["PECLET_VERIFY_DIR"])
-import family_wire  # noqa: E402  (by file location, from PECLET_VERIFY_DIR)
+import scenario as page_scenario  # noqa: E402  (by file location, from PECLET_VERIFY_DIR)
+import wire  # noqa: E402
 
 BOX = 3                                  # leaf kind id of a box (docs/architecture.md §2)
 ARENA_FIXED, ARENA_PER_BODY, ARENA_PER_CONTACT = 8192, 2048, 4096
@@ -304,8 +305,8 @@ class MujocoDem:
         self.name = f"MuJoCo {mujoco.__version__} (RK4, elliptic cones)"
 
     def run(self, scenario, threads):
-        return family_wire.run_scenario(MujocoPageSimulation, scenario)
+        return page_scenario.run_scenario(MujocoPageSimulation, scenario)
 
 
 if __name__ == "__main__":
-    family_wire.serve(dem=MujocoDem())
+    wire.serve(dem=MujocoDem())

@@ -1,2 +1,3 @@
 """Certify MuJoCo as a DEM engine: determinism, contact buffers, closed-form mechanics."""
-from peclet_verify.dem_suite import *  # noqa: F401,F403
+from peclet_verify.dem.suite import *  # noqa: F401,F403
+from peclet_verify.mechanics.suite import *  # noqa: F401,F403

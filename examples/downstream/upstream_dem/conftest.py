@@ -4,7 +4,7 @@ The engines are the upstream wheels ``peclet-dem`` 1.1.0 (DEM) and ``peclet-geom
 (geometry and mass properties). Both ship a top-level ``peclet`` package of their own, which
 must not meet the one under test, so they live in their own virtual environment and are
 served out of process (numpy arrays over a pipe), each through its dialect adapter in
-peclet_verify (``peclet_dem_wheel_child``, ``peclet_geom_child``, ``peclet_geom_mass_child``).
+peclet_verify (``dem/wheel_child.py``, ``geometry/wheel_child.py``, ``mass/wheel_child.py``).
 
 PECLET_UPSTREAM_VENV names that environment (a directory with ``bin/python``), e.g.::
 
@@ -49,21 +49,21 @@ def _env():
 
 
 def pytest_peclet_make_backend(config):
-    from peclet_verify.backends import SubprocessBackend, peclet_geom_child_command
+    from peclet_verify.geometry.backend import SubprocessBackend, wheel_child_command
     python, _ = _python()
-    return SubprocessBackend(peclet_geom_child_command(python), name="peclet-geom 1.0.1",
+    return SubprocessBackend(wheel_child_command(python), name="peclet-geom 1.0.1",
                              env=_env(), timeout=TIMEOUT)
 
 
 def pytest_peclet_make_dem_backend(config):
-    from peclet_verify.dem_backends import SubprocessDemBackend, wheel_dem_child_command
+    from peclet_verify.dem.backend import SubprocessDemBackend, wheel_child_command
     python, _ = _python()
-    return SubprocessDemBackend(wheel_dem_child_command(python), name="peclet-dem 1.1.0",
+    return SubprocessDemBackend(wheel_child_command(python), name="peclet-dem 1.1.0",
                                 env=_env(), timeout=TIMEOUT)
 
 
 def pytest_peclet_make_mass_backend(config):
-    from peclet_verify.mass_backends import SubprocessMassBackend, wheel_mass_child_command
+    from peclet_verify.mass.backend import SubprocessMassBackend, wheel_child_command
     python, _ = _python()
-    return SubprocessMassBackend(wheel_mass_child_command(python), name="peclet-geom 1.0.1",
+    return SubprocessMassBackend(wheel_child_command(python), name="peclet-geom 1.0.1",
                                  env=_env(), timeout=TIMEOUT)

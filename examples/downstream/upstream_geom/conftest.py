@@ -10,11 +10,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def pytest_peclet_make_backend(config):
-    from peclet_verify.backends import SubprocessBackend, peclet_geom_child_command
+    from peclet_verify.geometry.backend import SubprocessBackend, wheel_child_command
     python = os.environ.get("PECLET_GEOM_PYTHON") or os.path.join(HERE, ".venv", "bin", "python")
     if not os.path.isfile(python):
         # a ValueError here is reported by peclet as a one-line usage error
         raise ValueError(f"no interpreter with peclet-geom at {python}: run `python -m venv "
                          f"{HERE}/.venv && {HERE}/.venv/bin/pip install peclet-geom` or set "
                          f"PECLET_GEOM_PYTHON")
-    return SubprocessBackend(peclet_geom_child_command(python), name="peclet-geom")
+    return SubprocessBackend(wheel_child_command(python), name="peclet-geom")

@@ -1,2 +1,2 @@
 """Certify the upstream peclet-geom wheel: every certificate peclet ships for an engine."""
-from peclet_verify.suite import *  # noqa: F401,F403
+from peclet_verify.geometry.suite import *  # noqa: F401,F403
