@@ -21,8 +21,9 @@ import time
 import numba
 
 from peclet.core.files import write_json
-from peclet.packing import Material, RainProtocol, api, pack
-from peclet.packing import report as bed_report
+from peclet.packing import Material, RainProtocol, pack
+from peclet.packing.bed import api
+from peclet.packing.output import report as bed_report
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 

@@ -28,7 +28,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _report  # noqa: E402
 
 from peclet.dem import Simulation  # noqa: E402
-from peclet.packing.stir import StirSpec, StirredColumn, run_stir  # noqa: E402
+from peclet.packing.experiments.stir import StirSpec, StirredColumn, run_stir  # noqa: E402
 
 TARGET_MS_2_THREADS = 10.0
 UPSTREAM_MS_8_THREADS = 3.7

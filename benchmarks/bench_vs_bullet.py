@@ -45,7 +45,7 @@ from test_dem_composed import page_pour, pall_ring_particle  # noqa: E402
 
 from peclet.core.files import atomic_write  # noqa: E402
 from peclet.dem import Simulation  # noqa: E402
-from peclet.packing.protocols import PageProtocol  # noqa: E402
+from peclet.packing.bed.protocols import PageProtocol  # noqa: E402
 
 ANCHOR = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "anchors",
                                        "pall_ring_bullet.py"))

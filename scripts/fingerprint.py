@@ -22,7 +22,7 @@ def _hex(a):
 
 
 def quadrature_figures():
-    from peclet.packing import elements
+    from peclet.packing.bed import elements
 
     ring = elements.pall_ring()
     b, root = ring
@@ -39,7 +39,7 @@ def quadrature_figures():
 
 
 def pack_hash():
-    from peclet.packing import pipeline
+    from peclet.packing.page import pipeline
 
     with tempfile.TemporaryDirectory() as d:
         pipeline.run(out=d, progress=False, write_figures=False, log=lambda *a, **k: None)

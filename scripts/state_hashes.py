@@ -138,7 +138,7 @@ def hertz_composed(rolling=False, calls=25):
 
 def hertz_conforming(calls=20):
     from peclet.dem import Simulation, scene_particle
-    from peclet.packing import elements
+    from peclet.packing.bed import elements
     r, rho, t = 0.01, 2500.0, 0.0024
     el = elements.raschig_ring(r_outer=r, height=2 * r, thickness=t)
     sp = scene_particle.build(el.builder, el.root, bounds=el.bounds, n=8, shell_resolution=40,
@@ -174,7 +174,7 @@ def hertz_conforming(calls=20):
 
 
 def stir():
-    from peclet.packing.stir import StirSpec, StirredColumn
+    from peclet.packing.experiments.stir import StirSpec, StirredColumn
     spec = StirSpec(grain_radius=1.0, revolutions=0.25, settle=0.5, frames=3, seed=2).checked()
     col = StirredColumn(spec)
     sim = col.build()
@@ -187,7 +187,7 @@ def stir():
 
 
 def drum():
-    from peclet.packing.drum import Drum, DrumSpec
+    from peclet.packing.experiments.drum import Drum, DrumSpec
     spec = DrumSpec(radius=4, length=3, ends="caps", fill=0.25, froude=0.1, mu=0.5, wall_mu=1.0,
                     revolutions=0.2, warmup=0.0, frames=0, seed=3).checked()
     d = Drum(spec)
@@ -198,7 +198,7 @@ def drum():
 
 
 def grow():
-    from peclet.packing.grow import GrowSpec, grow as run
+    from peclet.packing.experiments.grow import GrowSpec, grow as run
     res = run(GrowSpec(count=40, max_steps=100, seed=4), progress=False)
     return hashlib.sha256(repr((res["state_hash"], float(res["phi"]).hex(),
                                 res["steps"])).encode()).hexdigest()

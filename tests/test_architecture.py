@@ -20,14 +20,14 @@ KERNEL_PARAMS = 12
 LARGE_MODULES = {
     "peclet/dem/solver.py": 673,
     "peclet/flow/permeability.py": 670,
-    "peclet/packing/drum.py": 997,
-    "peclet/packing/export.py": 677,
-    "peclet/packing/protocols.py": 649,
+    "peclet/packing/experiments/drum.py": 884,
+    "peclet/packing/output/export.py": 677,
+    "peclet/packing/bed/protocols.py": 649,
 }
 LONG_FUNCTIONS = {
     "peclet/core/geom/kernels.py:leaf_eval": 180,
     "peclet/core/geom/quadrature/breaks.py:_scan": 221,
-    "peclet/packing/pipeline.py:run": 258,
+    "peclet/packing/page/pipeline.py:run": 258,
 }
 WIDE_KERNELS = {
     "peclet/core/geom/pruning.py:_prune_block": 16,
@@ -56,7 +56,7 @@ WIDE_KERNELS = {
     "peclet/flow/solver.py:_link_momentum": 15,
     "peclet/flow/solver.py:_macro": 19,
     "peclet/flow/solver.py:_step": 22,
-    "peclet/packing/analysis.py:_cover_kernel": 13,
+    "peclet/packing/analysis/geometry.py:_cover_kernel": 13,
 }
 
 

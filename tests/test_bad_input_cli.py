@@ -13,7 +13,7 @@ import pytest
 
 from peclet.cli import main
 from peclet.core.outputs import MANIFEST, recording
-from peclet.packing import pipeline_checks as C
+from peclet.packing.page import checks as C
 
 CAP = int(numba.config.NUMBA_NUM_THREADS)
 
@@ -172,7 +172,7 @@ def test_overwrite_clears_exactly_the_earlier_runs_files(tmp_path):
 def test_issue_14_rings_400_box_10_passes_every_check_and_sizes_the_domain(tmp_path):
     """``peclet pall-ring --rings 400 --box 10`` died in the pour with ``y_top=60.0 is below
     the start cloud's top 63.45``: the domain's height now follows from the count."""
-    from peclet.packing.pour import start_cloud
+    from peclet.packing.bed.pour import start_cloud
 
     plan = C.check_run(out=str(tmp_path / "r"), rings=400, box=10.0, cli=True)
     top = start_cloud(400, 10.0, 5)[0][:, 1].max()
@@ -192,7 +192,7 @@ def test_the_radius_bound_holds_against_the_quadrature_centre_of_mass():
     """The box rule's r_b (before any build) bounds r + |c - com| with com by quadrature."""
     import numpy as np
 
-    from peclet.packing import elements as E
+    from peclet.packing.bed import elements as E
 
     ring = E.pall_ring()
     c, r, _ = ring.builder.node_bound(ring.root)
@@ -206,7 +206,7 @@ def test_the_shell_points_minimum_spreads_probes_at_most_a_wall_apart():
     """SHELL_POINTS_MIN from the ring's area measured here (marching cubes) and its wall."""
     from peclet.core.geom.mesh import surface_mesh
     from peclet.core.geom.shell import count_for_spacing, even_spacing
-    from peclet.packing import elements as E
+    from peclet.packing.bed import elements as E
 
     ring = E.pall_ring()
     area = surface_mesh(ring.builder, ring.root, [-0.62] * 3, [0.62] * 3, 80)[2]

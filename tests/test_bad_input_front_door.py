@@ -19,12 +19,14 @@ import pytest
 from peclet.cli import main
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
-from peclet.packing import Material, PageProtocol, RainProtocol, api, pack, resume
-from peclet.packing import analysis, profiles
-from peclet.packing import checkpoint as ckpt
-from peclet.packing.elements import sphere
-from peclet.packing.freeze import Pack
-from peclet.packing.protocols import LAND_SPEED, LandingWarning
+from peclet.packing import Material, PageProtocol, RainProtocol, pack, resume
+from peclet.packing.bed import api
+from peclet.packing.analysis import geometry as analysis
+from peclet.packing.analysis import profiles
+from peclet.packing.bed import checkpoint as ckpt
+from peclet.packing.bed.elements import sphere
+from peclet.packing.bed.freeze import Pack
+from peclet.packing.bed.protocols import LAND_SPEED, LandingWarning
 
 SMALL_RAIN = RainProtocol(drop=3.0, settle_steps=3000, calm_steps=20, quench_steps=20)
 GLASS = Material(e_n=0.3, e_t=0.0, mu=0.3)
@@ -83,8 +85,8 @@ def test_pack_refuses_before_any_work(monkeypatch, case):
 
 
 def test_the_start_cloud_stops_at_the_ceiling_instead_of_climbing():
-    from peclet.packing.containers import parse_container
-    from peclet.packing.protocols import start_cloud
+    from peclet.packing.bed.containers import parse_container
+    from peclet.packing.bed.protocols import start_cloud
 
     cont = parse_container(_closed_box(1.5, 4.0))
     _refused("count", lambda: start_cloud(300, cont, np.random.default_rng(0), y0=1.2,
@@ -191,8 +193,8 @@ def test_a_quench_on_falling_elements_is_flagged_and_a_landed_bed_is_not():
 
 
 def test_the_page_rule_predicts_the_landing_before_any_work():
-    from peclet.packing.containers import parse_container
-    from peclet.packing.protocols import Body
+    from peclet.packing.bed.containers import parse_container
+    from peclet.packing.bed.protocols import Body
 
     cont = parse_container("box:3.5")
     ctx = dict(container=cont, body=Body(-1, 1.0, np.ones(3), 0.72, 1.0), count=48)

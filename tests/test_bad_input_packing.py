@@ -12,9 +12,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from peclet.core.validation import PecletArgumentError
-from peclet.packing import elements as E
-from peclet.packing.freeze import Pack, load_pack, save_pack
-from peclet.packing.progress import Progress
+from peclet.packing.bed import elements as E
+from peclet.packing.bed.freeze import Pack, load_pack, save_pack
+from peclet.packing.bed.progress import Progress
 
 N = 6
 
@@ -289,8 +289,8 @@ def test_importing_the_pipeline_and_drawing_keeps_the_backend(tmp_path, backend)
     code = (
         "import sys, matplotlib\n"
         "before = matplotlib.get_backend()\n"
-        "import peclet.packing.pipeline\n"
-        "from peclet.packing import figures as F\n"
+        "import peclet.packing.page.pipeline\n"
+        "from peclet.packing.output import figures as F\n"
         "import numpy as np\n"
         "F.orientation_histogram(np.linspace(0, 1, 30), sys.argv[1])\n"
         "after = matplotlib.get_backend()\n"

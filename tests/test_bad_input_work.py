@@ -4,7 +4,7 @@ import pytest
 
 from peclet.cli import main
 from peclet.core.validation import PecletArgumentError
-from peclet.packing import series
+from peclet.packing.experiments import series
 
 
 @pytest.mark.parametrize("argv,flag", [
@@ -22,7 +22,7 @@ def test_a_turn_too_slow_to_finish_is_refused_with_its_estimate(tmp_path, capsys
 
 
 def test_the_api_refuses_it_too_and_a_normal_speed_passes():
-    from peclet.packing.drum import Drum, DrumSpec
+    from peclet.packing.experiments.drum import Drum, DrumSpec
 
     with pytest.raises(PecletArgumentError, match="froude must be a value whose run finishes"):
         Drum(DrumSpec(froude=1e-12).checked()).check_room()

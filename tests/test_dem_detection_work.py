@@ -16,7 +16,7 @@ import pytest
 
 from peclet.dem import Simulation, broadphase, distgrid
 from peclet.core.geom.kernels import eval_point
-from peclet.packing.stir import StirSpec, StirredColumn
+from peclet.packing.experiments.stir import StirSpec, StirredColumn
 
 from test_dem_moving_walls import _spheres
 

@@ -22,7 +22,7 @@ import pytest
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
 from peclet.dem import hertz, scene_particle
-from peclet.packing import elements
+from peclet.packing.bed import elements
 
 # one thread here (a few bodies); the thread test runs its own subprocesses
 from test_dem_hertz import _one_thread  # noqa: F401 (an autouse fixture)
@@ -159,7 +159,7 @@ _BED_SCRIPT = textwrap.dedent("""
     import numpy as np
     from peclet.core import geom
     from peclet.dem import Simulation, hertz, scene_particle
-    from peclet.packing import elements
+    from peclet.packing.bed import elements
     hertz.PARALLEL_MIN = hertz.PATCH_PARALLEL_MIN = hertz.DIST_PARALLEL_MIN = int(sys.argv[1])
     r, rho, t = 0.01, 2500.0, 0.0024
     el = elements.raschig_ring(r_outer=r, height=2 * r, thickness=t)

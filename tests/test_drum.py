@@ -20,7 +20,7 @@ import pytest
 
 from peclet.cli import main
 from peclet.dem import Simulation
-from peclet.packing.drum import Drum, DrumSpec, add_drum_wall, classify, measure, run_drum
+from peclet.packing.experiments.drum import Drum, DrumSpec, add_drum_wall, classify, measure, run_drum
 
 CAP = int(numba.config.NUMBA_NUM_THREADS)
 
@@ -216,7 +216,7 @@ def test_a_fill_the_drum_cannot_hold_is_refused_before_work(tmp_path, capsys):
 
 # ---------------------------------------------------------------- checkpoints and --resume
 def test_run_phases_from_a_stop_adds_the_same_numbers_as_the_uninterrupted_loop():
-    from peclet.packing.series import Phase, run_phases
+    from peclet.packing.experiments.series import Phase, run_phases
 
     phases = [Phase("a", 0.3, 5), Phase("b", 0.0, 0), Phase("c", 1.7, 4), Phase("d", 0.9, 3)]
     dt = 0.0123
@@ -280,7 +280,7 @@ def test_a_drum_stopped_at_a_phase_boundary_and_mid_rotation_resumes_bit_for_bit
                                                                                   tmp_path):
     import json
 
-    from peclet.packing.drum import resume_drum
+    from peclet.packing.experiments.drum import resume_drum
 
     ref, ref_out = reference
     assert ref["steps"] == 477 and ref["grains"] == 37
@@ -311,7 +311,7 @@ def test_peclet_drum_interrupted_by_ctrl_c_resumes_with_the_uninterrupted_bits(
         reference, tmp_path, capsys, monkeypatch):
     import json
 
-    from peclet.packing import drum as dr
+    from peclet.packing.experiments import drum as dr
 
     ref, ref_out = reference
     out = tmp_path / "run"
@@ -344,6 +344,57 @@ def test_peclet_drum_interrupted_by_ctrl_c_resumes_with_the_uninterrupted_bits(
     assert res["state_hash"] == ref["state_hash"]
     _same_frames(out, ref_out)
     assert not (out / "checkpoint").exists()
+
+
+def _to_earlier_drum_format(cdir):
+    """Rewrite the checkpoint in ``cdir`` as the drum wrote them before the shared format:
+    ``step-<k>/`` whose ``state.json`` holds the hashes, the spec in ``checkpoint.json``, no
+    ``spec.json`` or ``run.json``."""
+    import json
+
+    ptr = json.loads((cdir / "checkpoint.json").read_text())
+    spec = json.loads((cdir / "spec.json").read_text())
+    step = cdir / ptr["latest"]
+    run = json.loads((step / "run.json").read_text())
+    state = json.loads((step / "state.json").read_text())
+    name = f"step-{ptr['step']:010d}"
+    step.rename(cdir / name)
+    (cdir / name / "run.json").unlink()
+    state["sha256"] = {f: h for f, h in run["sha256"].items() if f != "state.json"}
+    (cdir / name / "state.json").write_text(json.dumps(state))
+    (cdir / "spec.json").unlink()
+    (cdir / "checkpoint.json").write_text(json.dumps(dict(
+        kind=ptr["kind"], run=ptr["run"], latest=name, step=ptr["step"], spec=spec["spec"])))
+
+
+def test_a_drum_checkpoint_of_the_earlier_format_still_resumes_bit_for_bit(reference,
+                                                                           tmp_path):
+    """Checkpoints share one format with pack runs (peclet.packing.bed.checkpoint); an
+    interrupted run checkpointed in the drum's earlier format still resumes, bit for bit, and
+    goes on in the shared format."""
+    import json
+
+    from peclet.packing.experiments.drum import resume_drum
+
+    ref, ref_out = reference
+    out = tmp_path / "run"
+    run_drum(DrumSpec(**RESUME), out=str(out), progress=False, figures=False,
+             checkpoint_every=100, max_steps=159)
+    cdir = out / "checkpoint"
+    assert sorted(os.listdir(cdir)) == ["checkpoint.json", "ckpt-000000159", "spec.json"]
+    assert sorted(os.listdir(cdir / "ckpt-000000159")) == ["arrays.npz", "run.json", "sim.npz",
+                                                           "state.json"]
+    _to_earlier_drum_format(cdir)
+    b = resume_drum(str(out), progress=False, figures=False, max_steps=237)
+    assert b["steps_done"] == 237
+    assert sorted(os.listdir(cdir)) == ["checkpoint.json", "ckpt-000000237", "spec.json"]
+    assert "spec" not in json.loads((cdir / "checkpoint.json").read_text())
+    _to_earlier_drum_format(cdir)
+    c = resume_drum(str(out), progress=False, figures=False)
+    assert c["state_hash"] == ref["state_hash"]
+    _same_results(c, ref)
+    _same_frames(out, ref_out)
+    assert not cdir.exists()
 
 
 @pytest.fixture(scope="module")
@@ -437,7 +488,7 @@ def test_the_published_protocol_is_the_lethe_drum_in_grain_units():
     """validation/drum.py's published run: R 69 mm, L 185 mm of 5.95 mm grains at 2.198 rad/s
     (Fr = omega^2 R / g), 6000 grains, monodisperse, caps."""
     from validation.drum import LETHE, LETHE_WALLS, PUBLISHED
-    from peclet.packing.drum import grain_count, _grains
+    from peclet.packing.experiments.drum import grain_count, _grains
 
     spec = DrumSpec(warmup=0.1, revolutions=0.1, ribs=LETHE_WALLS["smooth"], **LETHE).checked()
     assert spec.radius == pytest.approx(69.0 / 5.95)

@@ -12,8 +12,9 @@ from peclet.core.validation import PecletArgumentError
 from peclet.ensemble import (Ledger, PackSpec, ensemble_manifest, make_specs, parse_sweep,
                              realize, summarize)
 from peclet.ensemble.runner import run
-from peclet.packing import api, pack
-from peclet.packing import elements as E
+from peclet.packing import pack
+from peclet.packing.bed import api
+from peclet.packing.bed import elements as E
 from peclet.cli.options import ELEMENT_HELP
 
 

@@ -15,7 +15,7 @@ import time
 import pytest
 
 from peclet.ensemble import make_specs, realize, run
-from peclet.packing.freeze import load_pack
+from peclet.packing.bed.freeze import load_pack
 
 pytestmark = pytest.mark.slow
 

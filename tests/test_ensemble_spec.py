@@ -12,8 +12,8 @@ from peclet.core.validation import PecletArgumentError
 from peclet.ensemble import (Ledger, PackSpec, ensemble_manifest, make_specs, parse_seeds,
                              parse_sweep, summarize, write_csv, write_figure, write_json)
 from peclet.ensemble.runner import _row, run
-from peclet.packing import elements as E
-from peclet.packing.freeze import Pack, load_pack
+from peclet.packing.bed import elements as E
+from peclet.packing.bed.freeze import Pack, load_pack
 
 
 def tiny_pack(n=3, seed=0):

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from peclet.packing.progress import Progress
+from peclet.packing.bed.progress import Progress
 
 
 def test_a_slow_first_step_neither_inflates_the_eta_nor_the_rate():
@@ -50,7 +50,7 @@ def test_resumed_bar_starts_at_its_step():
 
 def test_cold_cache_is_detected_in_a_fresh_cache_dir(tmp_path):
     """With an empty NUMBA_CACHE_DIR the step's kernels are not cached: the note is printed."""
-    code = ("from peclet.packing.progress import compile_note\n"
+    code = ("from peclet.packing.bed.progress import compile_note\n"
             "from peclet.dem.simulation import step_kernels_cached\n"
             "print(step_kernels_cached()); print(compile_note() is not None)\n")
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
@@ -64,7 +64,7 @@ def test_warm_process_needs_no_note():
 
     from peclet.dem import Simulation
     from peclet.dem.simulation import step_kernels_cached
-    from peclet.packing.progress import compile_note
+    from peclet.packing.bed.progress import compile_note
 
     sim = Simulation(2)
     sid = sim.add_sphere_shape(0.5)
@@ -87,7 +87,7 @@ def test_bad_initial_is_named(kw, name):
 
 
 def test_ms_per_step_leaves_out_the_first_step():
-    from peclet.packing.progress import ms_per_step
+    from peclet.packing.bed.progress import ms_per_step
 
     assert ms_per_step(90.0, 85.0, 1001) == pytest.approx(5.0)     # 5 s over 1000 steps
     assert ms_per_step(2.0, 2.0, 1) == pytest.approx(2000.0)       # one step: its own time

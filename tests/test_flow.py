@@ -188,7 +188,7 @@ def test_same_bits_at_one_and_two_threads():
 def tiny_pack(tmp_path_factory):
     """12 spheres placed by hand in a periodic box:2 (a pack file as peclet writes it)."""
     from peclet.core import geom
-    from peclet.packing.freeze import Pack, save_pack
+    from peclet.packing.bed.freeze import Pack, save_pack
     b = geom.SceneBuilder()
     root = b.add_leaf("sphere", [0.5])
     ni, nr, _, _ = b.encode()
@@ -266,7 +266,7 @@ def test_thin_wall_warning_names_the_wall(tiny_pack):
     # spheres of diameter 1: at D/4 the "wall" (the sphere) spans 4 cells: no warning; a
     # ring wall 0.12 D thick would be named. Check the rule on a pack's tree directly.
     from peclet.flow.permeability import thinnest_wall
-    from peclet.packing.freeze import load_pack
+    from peclet.packing.bed.freeze import load_pack
     t, name = thinnest_wall(load_pack(tiny_pack))
     assert t == pytest.approx(1.0) and "sphere" in name
 
@@ -276,7 +276,7 @@ def test_page_pipeline_with_flow_adds_k_and_ergun(tmp_path):
     # the page at reduced size (tests/test_packing_pipeline.py's stand-in particle, 6 rings,
     # 0.14 of the steps) with the flow at D/6: k and dP/L / Ergun in results.json and the table
     from peclet.flow import page
-    from peclet.packing import pipeline
+    from peclet.packing.page import pipeline
     from test_packing_pipeline import standin_particle
     lines = []
     res = pipeline.run(out=str(tmp_path / "pall"), rings=6, seed=2, steps_scale=0.14, box=3.5,
@@ -307,7 +307,7 @@ def test_page_flow_stage_refuses_a_resolution_off_the_box(tmp_path):
 @pytest.mark.parametrize("stages", [[("flow", print)], {"flow": 3}, {1: print},
                                     {"timing": print}])
 def test_page_pipeline_refuses_bad_stages_before_any_work(tmp_path, stages):
-    from peclet.packing import pipeline
+    from peclet.packing.page import pipeline
     with pytest.raises(PecletArgumentError, match="stages"):
         pipeline.run(out=str(tmp_path / "p"), rings=6, steps_scale=0.14, stages=stages)
     assert not (tmp_path / "p").exists()
@@ -344,7 +344,7 @@ def test_a_wrapped_window_has_one_verdict_per_link_and_conserves_mass(tiny_pack)
     # the window [0.45, 1.85] wrapped: the field jumps at the seam, and the samples at the
     # links' midpoints fall on it, so the two ends of a link can disagree without the fix
     from peclet.flow.permeability import pack_domain
-    from peclet.packing.freeze import load_pack
+    from peclet.packing.bed.freeze import load_pack
     grid, phi, info = pack_domain(load_pack(tiny_pack), 8, (0.45, 1.85), "wrap")
     geo = build_geometry(grid, phi, seams=(False, True, False))
     assert _links_agree(geo) == 0

@@ -14,8 +14,8 @@ from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
 from peclet.flow import permeability
 from peclet.flow.permeability import eisfeld_schnitzlein, pack_container, pack_domain
-from peclet.packing.containers import Container
-from peclet.packing.freeze import Pack, load_pack
+from peclet.packing.bed.containers import Container
+from peclet.packing.bed.freeze import Pack, load_pack
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -1,5 +1,5 @@
 """Growth to jamming (issue 23, item 4): ``peclet pack --protocol grow`` and
-``peclet.packing.grow``, at a reduced size (validation/grow.py runs 100 to 1000 spheres)."""
+``peclet.packing.experiments.grow``, at a reduced size (validation/grow.py runs 100 to 1000 spheres)."""
 import json
 import math
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from peclet.cli import main
-from peclet.packing.grow import FINAL_OVERLAP, GrowSpec, grow, pair_correlation
+from peclet.packing.experiments.grow import FINAL_OVERLAP, GrowSpec, grow, pair_correlation
 
 CAP = int(numba.config.NUMBA_NUM_THREADS)
 

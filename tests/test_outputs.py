@@ -179,7 +179,7 @@ def test_write_series_keeps_a_users_file_in_frames(tmp_path):
     import meshio
     import numpy as np
 
-    from peclet.packing.series import write_series
+    from peclet.packing.experiments.series import write_series
 
     (tmp_path / "frames").mkdir()
     (tmp_path / "frames" / "IMG_0001.jpg").write_bytes(b"photo")
@@ -192,7 +192,8 @@ def test_write_series_keeps_a_users_file_in_frames(tmp_path):
 
 
 def test_write_stl_files_refuses_to_replace_a_directory_holding_other_files(tmp_path):
-    from peclet.packing import api, export
+    from peclet.packing.bed import api
+    from peclet.packing.output import export
 
     d = tmp_path / "bed_stl"
     d.mkdir()
@@ -212,8 +213,8 @@ def _cli(capsys, argv):
 
 @pytest.mark.parametrize("command,names", [
     (["stir", "--grain-radius", "1.0", "--revolutions", "0.25", "--settle", "0.5"],
-     "peclet.packing.stir"),
-    (["drum", "--froude", "0.01"], "peclet.packing.drum"),
+     "peclet.packing.experiments.stir"),
+    (["drum", "--froude", "0.01"], "peclet.packing.experiments.drum"),
     (["pack", "--element", "sphere", "--container", "column:2.5", "--count", "6",
       "--protocol", "rain"], "peclet.cli.pack"),
 ])

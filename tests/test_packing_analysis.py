@@ -6,9 +6,9 @@ import pytest
 
 from peclet.core.validation import PecletArgumentError
 
-from peclet.packing import analysis as A
-from peclet.packing import elements as E
-from peclet.packing.freeze import Pack
+from peclet.packing.analysis import geometry as A
+from peclet.packing.bed import elements as E
+from peclet.packing.bed.freeze import Pack
 
 
 def fibonacci_shell(n, r):

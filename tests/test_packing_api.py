@@ -8,10 +8,11 @@ import pytest
 
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
-from peclet.packing import Container, Material, PageProtocol, RainProtocol, api, pack, resume
-from peclet.packing import checkpoint as ckpt
-from peclet.packing.elements import sphere
-from peclet.packing.pour import pour
+from peclet.packing import Container, Material, PageProtocol, RainProtocol, pack, resume
+from peclet.packing.bed import api
+from peclet.packing.bed import checkpoint as ckpt
+from peclet.packing.bed.elements import sphere
+from peclet.packing.bed.pour import pour
 
 SMALL_RAIN = RainProtocol(drop=3.0, settle_steps=3000, calm_steps=20, quench_steps=20)
 GLASS = Material(e_n=0.3, e_t=0.0, mu=0.3)

@@ -14,11 +14,11 @@ import pytest
 
 from peclet.core.geom import SceneBuilder
 from peclet.core.validation import PecletArgumentError
-from peclet.packing import analysis as A
-from peclet.packing import elements as E
-from peclet.packing.coordination import engine_coordination, sphere_radius_of
-from peclet.packing.freeze import Pack
-from peclet.packing.api import _fibonacci_sphere
+from peclet.packing.analysis import geometry as A
+from peclet.packing.bed import elements as E
+from peclet.packing.analysis.coordination import engine_coordination, sphere_radius_of
+from peclet.packing.bed.freeze import Pack
+from peclet.packing.bed.api import _fibonacci_sphere
 
 
 def sphere_pack(P, r, L, shell=600):
@@ -110,7 +110,7 @@ def test_pall_rings_agree_with_a_brute_force_tree_distance():
     """Ring pairs placed at known gaps along a line: the engine's count at gap 1e-3 D equals the
     brute-force minimum of the exact tree over the other ring's probes (both ways)."""
     el = E.pall_ring()
-    from peclet.packing.api import element_model
+    from peclet.packing.bed.api import element_model
     m = element_model(el)
     ni, nr = m.node_ints, m.node_reals
     b = SceneBuilder.decode(ni, nr)
@@ -123,7 +123,7 @@ def test_pall_rings_agree_with_a_brute_force_tree_distance():
     pos = np.array(pos)
     quat = np.array(quat)
     # move each odd ring toward its even neighbour until the probe-tree distance is ~gap_k
-    from peclet.packing.freeze import rotation_matrices
+    from peclet.packing.bed.freeze import rotation_matrices
     targets = [-2e-3, 5e-4, 5e-3]
     for k, tgt in enumerate(targets):
         i, j = 2 * k, 2 * k + 1

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from peclet.packing import elements as E
+from peclet.packing.bed import elements as E
 
 sys.path.insert(0, str(Path(__file__).parent))
 
@@ -27,7 +27,7 @@ def test_every_element_is_certified_and_inside_its_bounds(name):
     c, r, cert = b.node_bound(root)
     assert cert and math.isfinite(r)
     # Equation 1 on exterior probes, and no solid on the faces of the declared bounds
-    chk = __import__("peclet.packing.analysis", fromlist=["x"]).certificate_check(b, root,
+    chk = __import__("peclet.packing.analysis.geometry", fromlist=["x"]).certificate_check(b, root,
                                                                                   n=20_000)
     assert chk["violating"] == 0.0
     lo, hi = el.bounds
@@ -73,7 +73,7 @@ def test_pall_ring_is_the_pages_tree():
 
 
 def test_sign_exact_twin_violates_equation_1_by_the_corner_ratio():
-    from peclet.packing.analysis import certificate_check
+    from peclet.packing.analysis.geometry import certificate_check
 
     chk = certificate_check(*E.pall_ring(certified=False), n=50_000)
     assert chk["violating"] > 0.1

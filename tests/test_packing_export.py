@@ -1,4 +1,4 @@
-"""Exports (peclet.packing.export): real STL / VTU / CSV files written and read back.
+"""Exports (peclet.packing.output.export): real STL / VTU / CSV files written and read back.
 
 The volume bound: every mesh point lies in a lattice cube whose corners change sign, so with a
 1-Lipschitz phi it is within sqrt(3) h of the zero set (h the lattice step); the measured
@@ -15,9 +15,9 @@ import trimesh
 
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
-from peclet.packing import export as E
-from peclet.packing.elements import pall_ring, sphere
-from peclet.packing.freeze import Pack
+from peclet.packing.output import export as E
+from peclet.packing.bed.elements import pall_ring, sphere
+from peclet.packing.bed.freeze import Pack
 
 H = 0.04  # lattice step, element diameters (D = 1)
 

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from peclet.core.geom.mesh import surface_mesh
-from peclet.packing import elements as E
-from peclet.packing import figures as F
+from peclet.packing.bed import elements as E
+from peclet.packing.output import figures as F
 from peclet.core.validation import PecletArgumentError
-from peclet.packing.freeze import Pack, load_pack, pack_to_simulation, save_pack
-from peclet.packing.pour import Protocol, start_cloud
+from peclet.packing.bed.freeze import Pack, load_pack, pack_to_simulation, save_pack
+from peclet.packing.bed.pour import Protocol, start_cloud
 
 
 def ring_pack(n=6, seed=0):
@@ -132,7 +132,7 @@ def test_figures_are_written_and_not_blank(tmp_path):
 def test_set_threads_takes_effect_and_validates():
     import numba
 
-    from peclet.packing.pipeline import set_threads
+    from peclet.packing.bed.threads import set_threads
 
     cap = numba.config.NUMBA_NUM_THREADS
     try:

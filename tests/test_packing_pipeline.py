@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from peclet.core.outputs import MANIFEST
-from peclet.packing.freeze import load_pack
+from peclet.packing.bed.freeze import load_pack
 
 FIGS = ("ring", "kinetic_energy", "pack", "orientation", "voidage_sweep")
 
@@ -28,7 +28,7 @@ def standin_particle(n_probes=500, seed=0):
     exact surface."""
     from peclet.core.geom import matrix_to_quat
     from peclet.core.geom.mesh import surface_mesh
-    from peclet.packing import elements as E
+    from peclet.packing.bed import elements as E
 
     el = E.pall_ring()
     b, r = el
@@ -63,7 +63,7 @@ def standin_particle(n_probes=500, seed=0):
 
 @pytest.fixture(scope="module")
 def reduced_run(tmp_path_factory):
-    from peclet.packing import pipeline
+    from peclet.packing.page import pipeline
 
     out = tmp_path_factory.mktemp("pall")
     # an earlier run's figure that this run does not write (recorded in the manifest as an
@@ -124,7 +124,7 @@ def test_every_output_exists_and_is_sane(reduced_run):
 
 @pytest.mark.slow
 def test_frozen_pack_rebuilds_the_simulation(reduced_run):
-    from peclet.packing.freeze import pack_to_simulation
+    from peclet.packing.bed.freeze import pack_to_simulation
 
     out, res, _ = reduced_run
     pk = load_pack(out / "pall_ring_pack.npz")
@@ -139,7 +139,7 @@ def test_frozen_pack_rebuilds_the_simulation(reduced_run):
 def test_analysis_kernels_compiled_on_one_ring_serve_the_whole_pack(reduced_run):
     # what a cold first run compiles beside the DEM children (analysis.compile_kernels, on a
     # one-ring pack) must be what the analysis of the poured pack calls: no new signature
-    from peclet.packing import analysis
+    from peclet.packing.analysis import geometry as analysis
 
     out, _, _ = reduced_run
     pk = load_pack(out / "pall_ring_pack.npz")
@@ -157,8 +157,8 @@ def test_analysis_kernels_compiled_on_one_ring_serve_the_whole_pack(reduced_run)
 def test_wall_sweep_against_the_tube_closed_form():
     """eps = 1 - f_env s(t) with s(t) by quadrature, on Raschig rings where
     s = 1 - (1 - t/r_o)^2 exactly."""
-    from peclet.packing import analysis as A
-    from peclet.packing import elements as E
+    from peclet.packing.analysis import geometry as A
+    from peclet.packing.bed import elements as E
 
     rows = A.wall_sweep([0.12], 0.58, 0.002, make=lambda t: E.raschig_ring(thickness=t), n=8)
     (r,) = rows

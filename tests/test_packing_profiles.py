@@ -1,4 +1,4 @@
-"""Column analysis (peclet.packing.profiles) against closed forms and independent integrals."""
+"""Column analysis (peclet.packing.analysis.profiles) against closed forms and independent integrals."""
 import math
 
 import numpy as np
@@ -7,9 +7,9 @@ from scipy import integrate
 
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError
-from peclet.packing import profiles as P
-from peclet.packing.elements import sphere
-from peclet.packing.freeze import Pack
+from peclet.packing.analysis import profiles as P
+from peclet.packing.bed.elements import sphere
+from peclet.packing.bed.freeze import Pack
 
 A = 0.5  # sphere radius: D = 1
 
@@ -230,8 +230,8 @@ def test_bad_arguments_are_named():
 
 # ---------------------------------------------------------------------- figures
 def test_rendered_sphere_covers_pi_over_four_of_its_square():
-    from peclet.packing import bed_figures as F
-    from peclet.packing.export import element_mesh
+    from peclet.packing.output import bed_figures as F
+    from peclet.packing.output.export import element_mesh
 
     pack = sphere_pack([[0.0, 0.0, 0.0]])
     img = F.render_bed(pack, element_mesh(pack, 0.03), [[0.2, 0.4, 0.8]], width=300,
@@ -245,8 +245,8 @@ def test_rendered_sphere_covers_pi_over_four_of_its_square():
 
 
 def test_the_nearer_element_hides_the_farther_one(tmp_path):
-    from peclet.packing import bed_figures as F
-    from peclet.packing.export import element_mesh
+    from peclet.packing.output import bed_figures as F
+    from peclet.packing.output.export import element_mesh
 
     # elev = 0, azim = 0: the viewer looks along -z; sphere 0 is in front of sphere 1
     pack = sphere_pack([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
@@ -263,7 +263,7 @@ def test_the_nearer_element_hides_the_farther_one(tmp_path):
 def test_profile_figures_are_written(tmp_path):
     from matplotlib.image import imread
 
-    from peclet.packing import bed_figures as F
+    from peclet.packing.output import bed_figures as F
 
     pack = sphere_pack([[1.5, 1.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 2.0, 0.5]])
     prof = P.radial_profile(pack, 2.0, (0, 0), 0.5, 2.5, samples_per_shell=200)

@@ -11,7 +11,7 @@ documented limit holds; what is wrong is that the error estimate does not show i
 measures at n = 32, where the figure is right."""
 import pytest
 
-from peclet.packing.elements import pall_ring_of_thickness
+from peclet.packing.bed.elements import pall_ring_of_thickness
 
 
 def _s(n):

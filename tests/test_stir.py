@@ -5,6 +5,7 @@ column with grains of radius 1.0 (1,416 grains, the same fill height) runs a fra
 revolution.
 """
 import math
+import os
 
 import meshio
 import numba
@@ -13,7 +14,7 @@ import pytest
 
 from peclet.cli import main
 from peclet.dem import Simulation
-from peclet.packing.stir import (StirSpec, StirredColumn, TIP_RADIUS, IMPELLER_Y, build_trees,
+from peclet.packing.experiments.stir import (StirSpec, StirredColumn, TIP_RADIUS, IMPELLER_Y, build_trees,
                                  lacey)
 
 CAP = int(numba.config.NUMBA_NUM_THREADS)
@@ -120,6 +121,60 @@ def test_a_stir_saved_and_resumed_mid_rotation_equals_the_uninterrupted_run(tmp_
     assert np.array_equal(q, res.get_wall_transform(1)[1])
     # the impeller turned about y by omega t
     assert 2.0 * math.atan2(q[1], q[3]) == pytest.approx(spec.omega * 150 * spec.dt, rel=1e-9)
+
+
+def _same_results(a, b):
+    import json
+
+    strip = lambda r: json.dumps({k: v for k, v in r.items()  # noqa: E731
+                                  if k not in ("seconds", "ms_per_step", "files")},
+                                 sort_keys=True)
+    assert strip(a) == strip(b)
+
+
+def test_a_stir_run_stopped_and_resumed_through_its_checkpoint_is_bit_for_bit(tmp_path,
+                                                                               capsys):
+    """run_stir's checkpoints (peclet.packing.bed.checkpoint, the format pack runs and the
+    drum use): stopped at the settle's end, then mid-rotation, then finished by
+    ``peclet stir --resume``, the run's results, frames and state hash are the uninterrupted
+    run's; an option given with --resume must have the run's value."""
+    import json
+
+    from peclet.packing.experiments.stir import resume_stir, run_stir
+
+    spec = _small()
+    ref_out = tmp_path / "ref"
+    ref = run_stir(spec, out=str(ref_out), progress=False, figures=False)
+    out = tmp_path / "run"
+    a = run_stir(spec, out=str(out), progress=False, figures=False, checkpoint_every=100,
+                 max_steps=250)
+    assert a == dict(complete=False, steps_done=250, checkpoint=str(out / "checkpoint"))
+    assert sorted(os.listdir(out / "checkpoint")) == ["checkpoint.json", "ckpt-000000250",
+                                                      "spec.json"]
+    b = resume_stir(str(out), progress=False, figures=False, max_steps=431)
+    assert b["steps_done"] == 431
+    state = json.loads((out / "checkpoint" / "ckpt-000000431" / "state.json").read_text())
+    assert state["k"] == 431 and state["angle"] > 0.0          # mid-rotation
+    rc = main(["stir", "--resume", str(out), "--quiet", "--seed", "3"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and err[0].startswith(
+        "peclet stir: error: --seed must be the resumed run's 2"), err
+    rc = main(["stir", "--resume", str(out), "--quiet", "--no-figures", "--grain-radius",
+               "1.0"])
+    assert rc == 0, capsys.readouterr().err
+    res = json.loads((out / "results.json").read_text())
+    assert res["state_hash"] == ref["state_hash"]
+    _same_results(res, json.loads((ref_out / "results.json").read_text()))
+    fa = sorted((out / "frames").glob("frame_*.vtu"))
+    fb = sorted((ref_out / "frames").glob("frame_*.vtu"))
+    assert [f.name for f in fa] == [f.name for f in fb] and len(fa) == 4   # settled + 3
+    for x, y in zip(fa, fb):
+        mx, my = meshio.read(x), meshio.read(y)
+        assert np.array_equal(mx.points, my.points)
+        assert np.array_equal(mx.point_data["velocity"], my.point_data["velocity"])
+        assert np.array_equal(mx.point_data["species"], my.point_data["species"])
+    assert (out / "stir.pvd").read_text() == (ref_out / "stir.pvd").read_text()
+    assert not (out / "checkpoint").exists()
 
 
 CASES = [

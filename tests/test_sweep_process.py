@@ -1,4 +1,4 @@
-"""peclet.packing.sweep_process: the wall-thickness sweep in a low-priority child gives the
+"""peclet.packing.page.sweep_process: the wall-thickness sweep in a low-priority child gives the
 rows of the same sweep in this process, bit for bit; a child that fails leaves the error to the
 in-process sweep; the child runs in the idle scheduling class; a run that stops kills it."""
 import os
@@ -6,8 +6,8 @@ import time
 
 import pytest
 
-from peclet.packing import analysis
-from peclet.packing.sweep_process import SweepProcess
+from peclet.packing.analysis import geometry as analysis
+from peclet.packing.page.sweep_process import SweepProcess
 
 THICK = [0.06, 0.12]
 # a coarse sweep (2 top cells a side, tol 1e-3: 1.8 s against 3.0 s at the page's n = 32,

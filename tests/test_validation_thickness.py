@@ -34,7 +34,7 @@ def test_every_pack_is_measured(study):
 
 
 def _s(t):
-    from peclet.packing import analysis
+    from peclet.packing.analysis import geometry as analysis
 
     return analysis.wall_sweep([t], 0.0, make=T.ring, n=32, tol=1e-6)[0]["s"]
 

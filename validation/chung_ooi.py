@@ -426,7 +426,7 @@ def worst(results, num):
 
 
 def run(steps, only=None, progress=True):
-    from peclet.packing.progress import Progress
+    from peclet.packing.bed.progress import Progress
     chosen = [t for t in TESTS if only is None or t[0] in only]
     bar = Progress(len(chosen), "Chung & Ooi", enabled=progress)
     results, seconds = {}, {}

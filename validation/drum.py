@@ -19,7 +19,7 @@ otherwise roll on a smooth wall like a ball bearing and the bed slips), nominal 
 (the CLI's default warm-up is one revolution; the slow drums here turn less to fit the whole
 table in ~15 minutes on 2 cores: 15 runs, two processes of one thread.)
 
-Regime criteria: :mod:`peclet.packing.drum` (measured: the share of samples with the bed at
+Regime criteria: :mod:`peclet.packing.experiments.drum` (measured: the share of samples with the bed at
 rest in the drum, the surface's S-shape, grains in free flight, the ring on the wall).
 Mellmann, Powder Technol. 118 (2001) 251-270, Table 1 (fill > 0.1): slumping 1e-5 < Fr < 1e-3,
 rolling 1e-4 < Fr < 1e-2, cascading 1e-3 < Fr < 0.1, cataracting 0.1 < Fr < 1,
@@ -38,7 +38,7 @@ reproduces 26 deg uses e = 0.9, sliding friction 0.3 and rolling friction 0.02, 
 grains and walls, and takes the angle from the top grains at 8 stations across the middle
 (|x| <= R/2) of the slices near the end walls. Ours: the same drum, count and speed, e = 0.9,
 mu = 0.3 (grains and walls), no rolling friction (the impulse step has none), the angle of our
-:func:`peclet.packing.drum.measure` (a line through the surface points of the central axial
+:func:`peclet.packing.experiments.drum.measure` (a line through the surface points of the central axial
 window), over half a revolution after a half-revolution warm-up; with the ribbed wall of the
 table (a smooth wall lets frictional spheres that cannot resist rolling slip on it) and with a
 smooth wall as Lethe's. Measured (2026-11-27): ribbed 31.6 +- 0.6 deg (cascading), smooth
@@ -106,7 +106,7 @@ def _timed_run(**spec):
     import numba
 
     numba.set_num_threads(1)
-    from peclet.packing.drum import DrumSpec, run_drum
+    from peclet.packing.experiments.drum import DrumSpec, run_drum
 
     t = time.perf_counter()
     r = run_drum(DrumSpec(**spec), out=None, progress=False)

@@ -183,8 +183,8 @@ def page_pack(path, resolutions=(8, 16, 24), tol=1e-6):
 def _lone_sphere_column(n, y, r):
     """A column:n pack of one sphere of radius r on the axis at height y (the pipe rungs)."""
     from peclet.core import geom
-    from peclet.packing.containers import Container
-    from peclet.packing.freeze import Pack
+    from peclet.packing.bed.containers import Container
+    from peclet.packing.bed.freeze import Pack
     c = Container.column(n)
     b = geom.SceneBuilder()
     root = b.add_leaf("sphere", [r])

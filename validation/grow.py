@@ -1,6 +1,6 @@
 """Growth to jamming against random close packing (issue 23, item 4).
 
-Protocol (``peclet.packing.grow``): N bodies at random in a periodic cube at envelope fraction
+Protocol (``peclet.packing.experiments.grow``): N bodies at random in a periodic cube at envelope fraction
 0.15, thermal speed 1 D/time (velocity-rescaling thermostat, tau 0.05), no gravity, restitution
 0.5, friction mu = 0; the cube shrinks at d ln(phi)/dt = 0.5, halved whenever an overlap
 exceeds 2e-3 D (and shrunk by 10 % per check while the overlaps stay above 5e-4 D), until the
@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 import sys
 
-from peclet.packing.grow import GrowSpec, grow
+from peclet.packing.experiments.grow import GrowSpec, grow
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:           # run as a script: the repository, for the package below

@@ -34,7 +34,7 @@ import numpy as np
 
 from peclet.core.files import atomic_write
 from peclet.packing import Material, RainProtocol, pack
-from peclet.packing import report as bed_report
+from peclet.packing.output import report as bed_report
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:           # run as a script: the repository, for the package below

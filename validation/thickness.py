@@ -7,10 +7,10 @@ measured f_env (its t/D = 0.12 ring's) across wall thicknesses, which assumes f_
 depend on the wall ("a hypothesis this page does not test"). Here the pour is re-run at every
 thickness and the hypothesis tested.
 
-Rings: the page's sweep construction, :func:`peclet.packing.elements.pall_ring_of_thickness`
+Rings: the page's sweep construction, :func:`peclet.packing.bed.elements.pall_ring_of_thickness`
 (D = 1, height 1, four windows per row, webs scaled with the wall, as in
 ``analysis.wall_sweep``), at t/D = 0.02, 0.04, 0.08, 0.12, 0.16. Shell probes follow
-the thinnest wall (``peclet.packing.api.element_model``: even-spread spacing <= t, so 1200
+the thinnest wall (``peclet.packing.bed.api.element_model``: even-spread spacing <= t, so 1200
 probes down to t/D = 0.08 and ~15 000 at 0.02).
 
 Protocol (:data:`FULL`), the same for every thickness and seed: 64 rings rained into a
@@ -96,14 +96,14 @@ QUICK = Study(thicknesses=(0.04, 0.08, 0.12), seeds=(1, 2), count=24, box=3.0, d
 
 def ring(t):
     """The page's sweep ring of wall thickness ``t`` (D = 1)."""
-    from peclet.packing.elements import pall_ring_of_thickness
+    from peclet.packing.bed.elements import pall_ring_of_thickness
 
     return pall_ring_of_thickness(float(t))
 
 
 def overlap_depth(geo):
     """Deepest probe of any ring inside another (a length in D)."""
-    from peclet.packing import analysis
+    from peclet.packing.analysis import geometry as analysis
 
     f = getattr(analysis, "probe_overlap", None)
     return float((f(geo) if f is not None else analysis.contacts(geo))["max_depth"])
@@ -111,7 +111,8 @@ def overlap_depth(geo):
 
 def one_pack(study, t, seed):
     """Pour one bed and measure it; returns a JSON-able dict."""
-    from peclet.packing import Material, analysis, pack
+    from peclet.packing import Material, pack
+    from peclet.packing.analysis import geometry as analysis
 
     t0 = time.perf_counter()
     res = pack(ring(t), f"box:{study.box:g}", count=study.count, protocol=study.protocol(),
@@ -204,7 +205,7 @@ def slope(t, f):
 def summarize(study, packs, s_of_t=None):
     """Per-thickness rows and the answer. ``s_of_t``: {t: V_solid/V_env} (default: by
     quadrature, ``analysis.wall_sweep``)."""
-    from peclet.packing import analysis
+    from peclet.packing.analysis import geometry as analysis
 
     ts = list(study.thicknesses)
     t_ref = study.t_ref if study.t_ref in ts else max(ts)

@@ -4,7 +4,7 @@ import pytest
 
 @pytest.fixture(scope="session")
 def page_ring():
-    from peclet.packing import elements
+    from peclet.packing.bed import elements
 
     return elements.pall_ring()
 

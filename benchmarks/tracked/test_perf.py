@@ -40,7 +40,7 @@ def test_quadrature_pall_ring_tol_1e8(benchmark, page_ring):
 
 
 def test_dem_step_settled_page_bed(benchmark, page_particle):
-    from peclet.packing.pour import Protocol, pour
+    from peclet.packing.bed.pour import Protocol, pour
 
     pr = pour(page_particle, n=48, box=3.5, seed=5, protocol=Protocol(), progress=False)
     sim = pr.sim
@@ -57,7 +57,7 @@ def test_dem_step_settled_page_bed(benchmark, page_particle):
 
 def test_cold_compile_and_first_ring(benchmark):
     """Import, compile every kernel the ring's evaluation needs, evaluate: a fresh Numba cache."""
-    code = ("from peclet.packing import elements; import numpy as np; r = elements.pall_ring(); "
+    code = ("from peclet.packing.bed import elements; import numpy as np; r = elements.pall_ring(); "
             "r.builder.eval_root(r.root, np.zeros((4, 3)))")
 
     def cold():

@@ -13,7 +13,7 @@ latest checkpoint (after the settle, every --checkpoint-every steps and at each 
 removed at the end unless --keep-checkpoint): ``--resume DIR`` finishes an interrupted run
 bit for bit, with the run's own parameters (an option given with --resume must have the
 run's value). Every argument is checked before any work: a bad one is one line naming its
-flag, exit code 2, nothing written. See :mod:`peclet.packing.drum`.
+flag, exit code 2, nothing written. See :mod:`peclet.packing.experiments.drum`.
 """
 from __future__ import annotations
 
@@ -112,7 +112,7 @@ def given_fields(args):
 
 def spec_from_args(args):
     """The checked DrumSpec of the parsed ``args`` (errors name the flags)."""
-    from peclet.packing.drum import DrumSpec
+    from peclet.packing.experiments.drum import DrumSpec
 
     kw = given_fields(args)
     if kw.get("froude") is None and kw.get("rpm") is None:
@@ -138,7 +138,7 @@ def _element_error(exc, text):
 
 
 def run(args):
-    from peclet.packing.drum import OUTPUT_DIRS, OUTPUTS, Drum, run_drum
+    from peclet.packing.experiments.drum import OUTPUT_DIRS, OUTPUTS, Drum, run_drum
 
     if args.resume is not None:
         return _resume(args)
@@ -169,7 +169,7 @@ def run(args):
 def _resume(args):
     """``--resume DIR``: check everything (the checkpoint, the options given against the
     run's), then finish the run."""
-    from peclet.packing import drum as dr
+    from peclet.packing.experiments import drum as dr
 
     threads = threads_option(args.threads)
     every = _every(args, None)                 # None: as the run had it

@@ -74,7 +74,7 @@ def _specs(args):
     from peclet.core.validation import PecletArgumentError, check_int
     from peclet.ensemble.runner import machine_cores
     from peclet.ensemble.spec import check_field, make_specs, parse_seeds, parse_sweep
-    from peclet.packing.elements import element_text, parse_element
+    from peclet.packing.bed.elements import element_text, parse_element
 
     seeds = parse_seeds(args.seeds, "--seeds")
     element = element_text(*parse_element(args.element, "--element"))

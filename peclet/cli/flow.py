@@ -143,8 +143,8 @@ def run(args):
     from peclet.core.outputs import check_output_dir, clear_outputs, recording
     from peclet.flow import output
     from peclet.flow.permeability import ThinWallWarning, permeability, richardson
-    from peclet.packing.freeze import load_pack
-    from peclet.packing.progress import Progress
+    from peclet.packing.bed.freeze import load_pack
+    from peclet.packing.bed.progress import Progress
 
     res, window, re_, tol, steps, margin = _options(args)
     threads = threads_option(args.threads)

@@ -5,7 +5,7 @@
     peclet pack --resume bed/            # finish an interrupted run, bit for bit
 
 Writes into --out: ``pack.npz`` (``freeze.save_pack``), ``results.json``, the analysis, figures
-and exports of ``peclet.packing.profiles`` / ``export`` / ``bed_figures`` (where present), and
+and exports of ``peclet.packing.analysis.profiles`` / ``export`` / ``bed_figures`` (where present), and
 ``checkpoint/`` while the run lasts (every --checkpoint-every steps; removed at the end unless
 --keep-checkpoint). Prints a results table on stdout. Every argument is checked before any
 expensive work: a bad one is one line naming it, exit code 2, nothing written.
@@ -90,7 +90,7 @@ def _stl_resolution(text):
     value is one line naming the flag, exit 2, before any work."""
     import argparse
 
-    from peclet.packing.export import parse_resolution
+    from peclet.packing.output.export import parse_resolution
 
     try:
         return str(parse_resolution(text, "--stl-resolution"))
@@ -154,8 +154,8 @@ def _bed_rules(element, container, count, proto, seed):
     holds next to nothing). Errors name the CLI flags."""
     import numpy as np
 
-    from peclet.packing import api
-    from peclet.packing.protocols import Body
+    from peclet.packing.bed import api
+    from peclet.packing.bed.protocols import Body
 
     el = api.resolve_element(element)
     d = api.element_diameter(el)
@@ -181,8 +181,8 @@ def _bed_rules(element, container, count, proto, seed):
 def _landed(res, out):
     """The landing rule after the run (``protocols``): True if the bed landed; otherwise the
     pack is saved to OUT/pack.npz, one error line says why and the bed is not analysed."""
-    from peclet.packing.api import landing_message
-    from peclet.packing.freeze import save_pack
+    from peclet.packing.bed.api import landing_message
+    from peclet.packing.bed.freeze import save_pack
 
     rec = res.state.landing
     if rec is None or rec["landed"]:
@@ -202,8 +202,8 @@ def _check_out(out, overwrite, resuming_from=None):
 
 
 def run(args):
-    from peclet.packing import api
-    from peclet.packing import checkpoint as ckpt
+    from peclet.packing.bed import api
+    from peclet.packing.bed import checkpoint as ckpt
 
     threads = None if args.threads is None else _num("--threads", args.threads, int, lo=1)
     every = _num("--checkpoint-every", args.checkpoint_every, int, lo=1)
@@ -246,7 +246,7 @@ def run(args):
     except PecletArgumentError as exc:
         raise _renamed(exc, "--count") from None
     if not args.no_figures:      # the whole bed's export size, before the run
-        from peclet.packing import export
+        from peclet.packing.output import export
 
         export.check_bed_triangles(count, args.stl_resolution or export.DEFAULT_RESOLUTION,
                                    "--stl-resolution")
@@ -307,8 +307,8 @@ def run(args):
 
 
 def _grow(args, count, seed, mu, e, threads):
-    """``--protocol grow``: growth to jamming in a periodic cube (peclet.packing.grow)."""
-    from peclet.packing import grow as growth
+    """``--protocol grow``: growth to jamming in a periodic cube (peclet.packing.experiments.grow)."""
+    from peclet.packing.experiments import grow as growth
 
     if args.container is not None:
         raise PecletArgumentError("--container", "left out with --protocol grow (it grows the "
@@ -323,7 +323,7 @@ def _grow(args, count, seed, mu, e, threads):
     if isinstance(args.element, str) and args.element.endswith(".npz"):
         raise PecletArgumentError("--element", "a library element with --protocol grow",
                                   args.element)
-    from peclet.packing import api
+    from peclet.packing.bed import api
     try:
         api.resolve_element(args.element)
     except PecletArgumentError as exc:
@@ -340,15 +340,15 @@ def _grow(args, count, seed, mu, e, threads):
 
 
 def _finish(res, out, args, cdir, previous):
-    from peclet.packing import report as bed_report
-    from peclet.packing.freeze import save_pack
+    from peclet.packing.output import report as bed_report
+    from peclet.packing.bed.freeze import save_pack
 
     os.makedirs(out, exist_ok=True)
     # no figure of the old run left beside the new results (its checkpoint went before the
     # run; the one this run wrote is handled below)
     clear_outputs(out, tuple(f for f in previous if f != "checkpoint"))
     save_pack(os.path.join(out, "pack.npz"), res.pack)
-    from peclet.packing import export
+    from peclet.packing.output import export
 
     stl_res = getattr(args, "stl_resolution", None) or export.DEFAULT_RESOLUTION
     try:
@@ -365,7 +365,7 @@ def _finish(res, out, args, cdir, previous):
         raise _renamed(exc, "--stl-resolution") from None
     bed_report.write_results(os.path.join(out, "results.json"), res, report)
     if not args.keep_checkpoint:
-        from peclet.packing import checkpoint as ckpt
+        from peclet.packing.bed import checkpoint as ckpt
         ckpt.remove(cdir)
     print(bed_report.table(res, report))
     print(f"\nwrote {os.path.join(out, 'results.json')}, pack.npz and the rest in {out}",

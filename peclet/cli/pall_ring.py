@@ -4,7 +4,7 @@
                      [--steps-scale F] [--box L] [--mc-samples K] [--shell-points M]
                      [--animation] [--no-figures] [--quiet] [--flow [--flow-resolution D/N]]
 
-runs the reference page end to end (:func:`peclet.packing.pipeline.run`), prints the page's
+runs the reference page end to end (:func:`peclet.packing.page.pipeline.run`), prints the page's
 Results table with our numbers beside the page's, and writes the figures, the frozen pack
 (``pall_ring_pack.npz``) and ``results.json`` into DIR. With ``--flow`` the frozen pack's
 permeability k and its dP/L against the Ergun viscous term (lattice Boltzmann,
@@ -12,7 +12,7 @@ permeability k and its dP/L against the Ergun viscous term (lattice Boltzmann,
 to results.json (``flow``).
 
 Every option is checked before the ring is built (the rules and caps are stated in
-:mod:`peclet.packing.pipeline_checks`): a bad one is a single ``peclet pall-ring: error:``
+:mod:`peclet.packing.page.checks`): a bad one is a single ``peclet pall-ring: error:``
 line naming it, exit code 2, and nothing written. A DIR holding an earlier run's files is
 refused unless ``--overwrite``, which removes those files first.
 """
@@ -41,7 +41,7 @@ def _as(name, text, kind):
 
 
 def add_parser(sub):
-    from peclet.packing import pipeline_checks as C
+    from peclet.packing.page import checks as C
 
     pr = sub.add_parser("pall-ring", help="run the Pall-ring page end to end",
                         description="Pour Pall rings into a periodic box (the reference page, "
@@ -62,7 +62,7 @@ def add_parser(sub):
     pr.add_argument("--box", default="3.5",
                     help="periodic box side in ring diameters (default 3.5); it must exceed "
                     "the engine's bound for the ring and let the start cloud of --rings land "
-                    "before the quench (peclet.packing.pipeline_checks states both rules)")
+                    "before the quench (peclet.packing.page.checks states both rules)")
     pr.add_argument("--mc-samples", default="400000",
                     help=f"Monte Carlo points per bulk window, {C.MC_SAMPLES_MIN}.."
                     f"{C.MC_SAMPLES_MAX} (default 400000)")
@@ -83,10 +83,11 @@ def add_parser(sub):
 
 
 def run(args):
-    """Convert and check every option (:func:`peclet.packing.pipeline_checks.check_run`, with
+    """Convert and check every option (:func:`peclet.packing.page.checks.check_run`, with
     the options' names) before anything is built or written, then run the page."""
     from peclet.dem import warm
-    from peclet.packing import pipeline, pipeline_checks
+    from peclet.packing.page import pipeline
+    from peclet.packing.page import checks as pipeline_checks
 
     # a cold cache: the DEM kernels start compiling now, beside the checks' own compilation
     # (the run finds them started); a refusal stops them
@@ -107,6 +108,8 @@ def run(args):
 
 
 def _checked(args, pipeline, pipeline_checks):
+    from peclet.packing.bed.threads import set_threads
+
     # (flow resolution or None, the run's keyword arguments), every option checked
     kw = dict(out=args.out, rings=_as("--rings", args.rings, int),
               seed=_as("--seed", args.seed, int), threads=_as("--threads", args.threads, int),
@@ -129,5 +132,5 @@ def _checked(args, pipeline, pipeline_checks):
                                                  "--flow-resolution"),
                                 kw["box"], "--flow-resolution")
     if kw["threads"] is not None:
-        pipeline.set_threads(kw["threads"], "--threads")
+        set_threads(kw["threads"], "--threads")
     return flow, kw

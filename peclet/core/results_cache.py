@@ -1,7 +1,7 @@
 """Deterministic results kept on disk, keyed by the code that computes them.
 
 Some results are pure functions of a few numbers and of peclet's own code, and cost seconds:
-Step 6's wall-thickness sweep (:mod:`peclet.packing.sweep_process`) is the same for every run
+Step 6's wall-thickness sweep (:mod:`peclet.packing.page.sweep_process`) is the same for every run
 of the page, whatever its ring count or seed. :func:`load` / :func:`store` keep such results
 between runs.
 

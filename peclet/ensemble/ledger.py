@@ -4,7 +4,7 @@ Layout::
 
     OUT/ensemble.json          the ensemble manifest (spec.ensemble_manifest)
     OUT/<spec-id>/results.json the realization's figures, its spec and state hash
-    OUT/<spec-id>/pack.npz     the frozen pack (peclet.packing.freeze.save_pack)
+    OUT/<spec-id>/pack.npz     the frozen pack (peclet.packing.bed.freeze.save_pack)
 
 A result is written into ``OUT/.peclet-part-<spec-id>-XXXX/`` and that directory is renamed to
 ``OUT/<spec-id>/`` in one ``os.rename``: a reader sees either nothing or the whole result, and
@@ -117,7 +117,7 @@ class Ledger:
         """Write ``result`` (a dict) and ``pack`` (freeze.Pack) as ``OUT/<spec-id>/``, all at
         once (temp directory + rename). If another process finished the same spec first,
         keep its directory (the two are bitwise equal: a spec determines its result)."""
-        from peclet.packing.freeze import save_pack
+        from peclet.packing.bed.freeze import save_pack
 
         self.prepare()
         final = self.path(spec)

@@ -1,11 +1,11 @@
 """One realization: :func:`realize` packs a :class:`~peclet.ensemble.spec.PackSpec` and
 measures it. This is the function a Dask worker runs; it is also the serial reference.
 
-Figures of merit, as the page computes them (peclet.packing.pipeline): the porosity eps and the
+Figures of merit, as the page computes them (peclet.packing.page.pipeline): the porosity eps and the
 envelope packing fraction f_env by Monte Carlo over the first bulk window
 (``analysis.bulk_windows``; ``spec.mc_samples`` points, sample seed 0), and the mean
 coordination Z (element-element, from the engine's own contact detection at the page
-pipeline's contact gap, :mod:`peclet.packing.coordination`; ``z_total`` adds the walls).
+pipeline's contact gap, :mod:`peclet.packing.analysis.coordination`; ``z_total`` adds the walls).
 Everything but the timings is a deterministic function of the spec, at any thread count.
 """
 from __future__ import annotations
@@ -45,10 +45,13 @@ def realize(spec, threads=None):
     f_env, f_env_se, z_mean, rattlers, window, steps, timing, threads, host, pid; state_hash
     is ``PackResult.state_hash()``, SHA-256 of the positions' and quaternions' float64 bytes)
     and pack the
-    frozen :class:`peclet.packing.freeze.Pack`.
+    frozen :class:`peclet.packing.bed.freeze.Pack`.
     """
-    from peclet.packing import analysis, coordination, pack
-    from peclet.packing.pipeline import CONTACT_GAP, set_threads
+    from peclet.packing import pack
+    from peclet.packing.analysis import geometry as analysis
+    from peclet.packing.analysis import coordination
+    from peclet.packing.bed.threads import set_threads
+    from peclet.packing.page.pipeline import CONTACT_GAP
 
     if threads is not None:
         set_threads(threads)

@@ -8,7 +8,7 @@ the same ``OUT/<spec-id>/`` directory and two different specs never share one.
 ``--seeds`` text: comma-separated integers >= 0 and inclusive ranges, e.g. ``1-32`` or
 ``1-4,10,20-22``. ``--sweep`` text: ``KEY=V1,V2,...`` with KEY one of :data:`SWEEPABLE` or a
 numeric construction parameter of the spec's element (``thickness=0.03,0.06,0.12`` for a Pall
-ring: ``peclet.packing.elements.PARAMS``); several sweeps combine as a Cartesian product.
+ring: ``peclet.packing.bed.elements.PARAMS``); several sweeps combine as a Cartesian product.
 
 The element is text, ``NAME`` or ``NAME:KEY=V,...`` (``pall_ring:thickness=0.024``), stored in
 its canonical form (parameters in ``PARAMS`` order, floats as their shortest repr): the same
@@ -24,7 +24,8 @@ import json
 import math
 import re
 
-from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
+from peclet.core.spec import Custom, Float, Int, Spec, Text, field
+from peclet.core.validation import PecletArgumentError, check_choice, check_int
 
 __all__ = ["PackSpec", "SWEEPABLE", "PROTOCOLS", "check_field", "parse_seeds", "parse_sweep",
            "make_specs", "ensemble_manifest", "MAX_REALIZATIONS", "element_params",
@@ -46,40 +47,42 @@ SWEEPABLE = ("mu", "e_n", "e_t", "count", "steps_scale")
 PROTOCOLS = ("page", "rain")
 
 
-def check_field(name, value, arg=None):
-    """``value`` checked against the accepted range of the numeric spec field ``name``, in one
-    place (fixed and swept values alike); errors name ``arg`` (default ``name``)."""
-    arg = arg or name
-    if name == "mu":
-        return check_float(arg, value, 0.0)
-    if name == "e_n":
-        return check_float(arg, value, 0.0, 1.0)
-    if name == "e_t":
-        return check_float(arg, value, -1.0, 1.0)
-    if name == "count":   # pack()'s cap (work and memory: peclet.packing.api.count_cap)
-        from peclet.packing.api import count_cap
+def _count(arg, value, c=None):
+    """pack()'s cap (work and memory: peclet.packing.bed.api.count_cap)."""
+    from peclet.packing.bed.api import count_cap
 
-        cap, why = count_cap()
-        v = check_int(arg, value, 1)
-        if v > cap:
-            raise PecletArgumentError(arg, f"an integer in [1, {cap}]", value, why)
-        return v
-    if name == "steps_scale":
-        return check_float(arg, value, 0.0, 100.0, lo_open=True)
-    if name == "seed":
-        return check_int(arg, value, 0, _MAX_SEED)
-    if name == "mc_samples":   # about 100 bytes per sample at the sampling's peak: 1 GB
-        v = check_int(arg, value, 1000)
-        if v > 10_000_000:
-            raise PecletArgumentError(arg, "an integer in [1000, 10000000]", value,
-                                      "about 100 bytes per sample at the sampling's peak: "
-                                      "10^7 samples are about 1 GB")
-        return v
-    raise KeyError(name)
+    cap, why = count_cap()
+    v = check_int(arg, value, 1)
+    if v > cap:
+        raise PecletArgumentError(arg, f"an integer in [1, {cap}]", value, why)
+    return v
+
+
+def _mc_samples(arg, value, c=None):
+    """About 100 bytes per sample at the sampling's peak: 1 GB."""
+    v = check_int(arg, value, 1000)
+    if v > 10_000_000:
+        raise PecletArgumentError(arg, "an integer in [1000, 10000000]", value,
+                                  "about 100 bytes per sample at the sampling's peak: "
+                                  "10^7 samples are about 1 GB")
+    return v
+
+
+#: The numeric fields: what :func:`check_field` checks.
+_NUMERIC = ("mu", "e_n", "e_t", "count", "steps_scale", "seed", "mc_samples")
+
+
+def check_field(name, value, arg=None):
+    """``value`` checked against the accepted range of the numeric spec field ``name`` as
+    :class:`PackSpec` declares it, in one place (fixed and swept values alike); errors name
+    ``arg`` (default ``name``)."""
+    if name not in _NUMERIC:
+        raise KeyError(name)
+    return PackSpec.check_value(name, value, arg)
 
 
 @dataclasses.dataclass(frozen=True)
-class PackSpec:
+class PackSpec(Spec):
     """One realization: pour ``count`` copies of ``element`` into ``container`` with
     ``protocol`` (its step counts times ``steps_scale``), body material (e_n, e_t, mu) (walls
     the same), start cloud from ``seed``; then measure eps, f_env (``mc_samples`` Monte Carlo
@@ -88,30 +91,28 @@ class PackSpec:
     element: a library name (``peclet.packing.ELEMENTS``), optionally with construction
     parameters ``NAME:KEY=V,...`` (checked and stored canonically, see the module docstring;
     :attr:`element_params` reads them back); container: ``"box:L"`` etc. as
-    ``peclet.packing.pack`` reads it; lengths in element diameters D.
+    ``peclet.packing.pack`` reads it; lengths in element diameters D. Each field's range is
+    declared here once (:mod:`peclet.core.spec`).
     """
 
-    element: str = "pall_ring"
-    container: str = "box:3.5"
-    count: int = 48
-    protocol: str = "page"
-    steps_scale: float = 1.0
-    e_n: float = 0.15
-    e_t: float = 0.0
-    mu: float = 0.5
-    seed: int = 5
-    mc_samples: int = 400_000
+    check_first = ("element", "container", "protocol")
+
+    element: str = field("pall_ring", Text())
+    container: str = field("box:3.5", Text())
+    count: int = field(48, Custom(_count))
+    protocol: str = field("page", Text())
+    steps_scale: float = field(1.0, Float(0.0, 100.0, lo_open=True))
+    e_n: float = field(0.15, Float(0.0, 1.0))
+    e_t: float = field(0.0, Float(-1.0, 1.0))
+    mu: float = field(0.5, Float(0.0))
+    seed: int = field(5, Int(0, _MAX_SEED))
+    mc_samples: int = field(400_000, Custom(_mc_samples))
 
     def __post_init__(self):
-        for name in ("element", "container", "protocol"):
-            v = getattr(self, name)
-            if not isinstance(v, str) or not v:
-                raise PecletArgumentError(name, "a non-empty string", v)
-        for name in ("count", "steps_scale", "e_n", "e_t", "mu", "seed", "mc_samples"):
-            object.__setattr__(self, name, check_field(name, getattr(self, name)))
+        self._check_in_place()
         # the same cheap checks pack() makes, here so a bad spec fails before a cluster starts
-        from peclet.packing.containers import parse_container
-        from peclet.packing.elements import element_text, parse_element
+        from peclet.packing.bed.containers import parse_container
+        from peclet.packing.bed.elements import element_text, parse_element
 
         object.__setattr__(self, "element", element_text(*parse_element(self.element,
                                                                         "element")))
@@ -189,14 +190,14 @@ def parse_seeds(text, name="seeds"):
 def element_params(element):
     """The given construction parameters of an element text (``"pall_ring:thickness=0.024"``
     -> ``{"thickness": 0.024}``; ``"pall_ring"`` -> ``{}``), checked."""
-    from peclet.packing.elements import parse_element
+    from peclet.packing.bed.elements import parse_element
 
     return parse_element(element, "element")[1]
 
 
 def sweepable_element_params(element="pall_ring"):
     """Names of the element's numeric construction parameters (a sweep may vary them)."""
-    from peclet.packing.elements import PARAMS, parse_element
+    from peclet.packing.bed.elements import PARAMS, parse_element
 
     kind = parse_element(element, "element")[0]
     return tuple(p.name for p in PARAMS[kind] if p.kind != "triple")
@@ -205,7 +206,7 @@ def sweepable_element_params(element="pall_ring"):
 def _check_element_value(element, key, num, arg):
     """``num`` as the element's parameter ``key`` (its range given the element's other
     parameters, then the constructor's cross-checks); returns the value (float or int)."""
-    from peclet.packing.elements import ELEMENTS, check_param, parse_element
+    from peclet.packing.bed.elements import ELEMENTS, check_param, parse_element
 
     kind, given = parse_element(element, "element")
     if key in given:
@@ -227,7 +228,7 @@ def parse_sweep(items, name="sweep", element=None):
     KEY is one of :data:`SWEEPABLE` or a numeric construction parameter of ``element`` (the
     ensemble's element text; None: ``"pall_ring"``, PackSpec's default), e.g.
     ``thickness=0.03,0.06,0.12``, each value checked against the parameter's range given the
-    element's other parameters (``peclet.packing.elements.PARAMS``).
+    element's other parameters (``peclet.packing.bed.elements.PARAMS``).
 
     Raises PecletArgumentError naming ``name`` on a missing ``=``, a key that is neither, a
     key swept twice, an empty or unparsable value, a value out of range, or a value given
@@ -273,7 +274,7 @@ def parse_sweep(items, name="sweep", element=None):
 
 
 def _other_elements(key, element):
-    from peclet.packing.elements import PARAMS
+    from peclet.packing.bed.elements import PARAMS
 
     kind = element.partition(":")[0]
     if any(p.name == key and p.kind == "triple" for p in PARAMS.get(kind, ())):
@@ -288,7 +289,7 @@ def make_specs(seeds, sweep=None, **fixed):
     seeds inner. ``fixed``: the other PackSpec fields; a swept key must not also be fixed.
     A swept element parameter (e.g. ``thickness``) goes into the element text of each point,
     beside the parameters the fixed ``element`` already gives (which must not include it)."""
-    from peclet.packing.elements import element_text, parse_element
+    from peclet.packing.bed.elements import element_text, parse_element
 
     sweep = dict(sweep or {})
     clash = sorted(set(sweep) & {k for k, v in fixed.items() if v is not None})

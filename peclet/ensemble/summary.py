@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from peclet.core import files
-from peclet.core.files import atomic_write, write_text
+from peclet.core.files import write_text
 
 
 __all__ = ["summarize", "write_csv", "write_json", "write_figure", "LABELS", "CONFIDENCE"]
@@ -91,14 +91,12 @@ def write_figure(path, points, rows, swept=()):
     """summary.png: one panel per figure of merit against the first swept parameter (one
     series per combination of the others), mean with its 95% interval as error bars, every
     realization as a faint dot. Without a sweep: the values against the seed, with the mean
-    and its interval as a line and a band. Drawn on a ``Figure`` with ``FigureCanvasAgg``
+    and its interval as a line and a band. Drawn through :mod:`peclet.core.figures`
     (matplotlib's global backend is left alone)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from peclet.core.figures import new_figure, save_png
 
     swept = list(swept)
-    fig = Figure(figsize=(4.0 * len(LABELS), 3.4), dpi=120)
-    FigureCanvasAgg(fig)
+    fig = new_figure((4.0 * len(LABELS), 3.4), dpi=120)
     axes = fig.subplots(1, len(LABELS))
     for ax, (field, name) in zip(np.atleast_1d(axes), LABELS.items()):
         if swept:
@@ -133,7 +131,4 @@ def write_figure(path, points, rows, swept=()):
         ax.grid(alpha=0.3)
     fig.suptitle(f"ensemble: mean and {CONFIDENCE:.0%} interval over seeds", fontsize=10)
     fig.tight_layout()
-
-    def write(tmp):
-        fig.savefig(tmp, format="png")
-    return atomic_write(path, write)
+    return save_png(fig, path)

@@ -104,10 +104,9 @@ def write_vtu(path, flow):
 
 def slice_figure(path, flow, plane="xy", index=None, title=None):
     """A PNG of the speed |u| on one lattice plane (``plane`` "xy", "yz" or "xz"; ``index``
-    the node index along the third axis, default the middle), solids grey. Agg backend."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    the node index along the third axis, default the middle), solids grey; drawn through
+    :mod:`peclet.core.figures` (the user's matplotlib backend is left alone)."""
+    from peclet.core.figures import save_png, subplots
     plane = check_choice("plane", plane, ("xy", "yz", "xz"))
     path = check_writable_path(path, "path")
     u, fluid = full_field(flow)
@@ -128,7 +127,7 @@ def slice_figure(path, flow, plane="xy", index=None, title=None):
     ax_o = {"x": o[0], "y": o[1], "z": o[2]}
     extent = (ax_o[lab[0]] + h * (ext[0] - 0.5), ax_o[lab[0]] + h * (ext[1] - 0.5),
               ax_o[lab[1]] + h * (ext[2] - 0.5), ax_o[lab[1]] + h * (ext[3] - 0.5))
-    fig, ax = plt.subplots(figsize=(6, 6 * (ext[3] - ext[2]) / max(ext[1] - ext[0], 1)))
+    fig, ax = subplots(figsize=(6, 6 * (ext[3] - ext[2]) / max(ext[1] - ext[0], 1)))
     im = ax.imshow(np.ma.masked_where(~mask, img), origin="lower", extent=extent,
                    cmap="viridis", interpolation="nearest")
     ax.imshow(np.where(mask, np.nan, 1.0), origin="lower", extent=extent, cmap="Greys",
@@ -137,11 +136,5 @@ def slice_figure(path, flow, plane="xy", index=None, title=None):
     ax.set_ylabel(f"{lab[1]} / D")
     ax.set_title(title or f"|u| on the {plane} plane, index {i} (lattice units)")
     fig.colorbar(im, ax=ax, label="|u| (cells/step)", shrink=0.8)
-
-    def write(tmp):
-        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
-    try:
-        atomic_write(path, write)
-    finally:
-        plt.close(fig)
+    save_png(fig, path, dpi=110, bbox_inches="tight")
     return path

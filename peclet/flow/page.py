@@ -1,7 +1,7 @@
 """The flow stage of the page pipeline: ``peclet pall-ring --flow`` pushes a slow flow through
 the frozen pack and adds k and dP/L against Ergun to the Results.
 
-The pipeline (``peclet.packing.pipeline``) sits below ``peclet.flow`` in the layers
+The pipeline (``peclet.packing.page.pipeline``) sits below ``peclet.flow`` in the layers
 (docs/architecture.md §1), so it never imports this module: it runs the *stages* it is given
 after the pack is frozen, and the command line composes them (``stages={"flow": stage(8)}``).
 """
@@ -43,7 +43,7 @@ def summary(pack, resolution, progress=False):
     ``res["flow"]`` (k in D^2 and cells^2, dP/L in lattice units, the Ergun viscous ratios
     (Sauter and envelope diameters), the Kozeny constant, porosity, steps, the thin-wall
     warning if any)."""
-    from peclet.packing.progress import Progress
+    from peclet.packing.bed.progress import Progress
 
     bar = Progress(100_000, desc=f"flow D/{resolution:g}", enabled=bool(progress), note=None)
     with warnings.catch_warnings():

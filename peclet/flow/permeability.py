@@ -2,7 +2,7 @@
 
 The domain (world frame of the pack: y up, periodic in x and z with sides ``pack.box``) is a
 bulk window ``y in [y0, y1]`` cut out of the bed, by default the page's first window (1 D
-above the floor, 0.8 D below the highest centre; :func:`peclet.packing.analysis.bulk_windows`).
+above the floor, 0.8 D below the highest centre; :func:`peclet.packing.analysis.geometry.bulk_windows`).
 The flow needs a periodic y as well; ``y_mode`` says how:
 
 - ``"wrap"`` (default): the window wraps onto itself; elements cut at y0 and y1 meet at a
@@ -21,7 +21,7 @@ The flow needs a periodic y as well; ``y_mode`` says how:
 
 **Column sections** (a pack made in a ``column:N`` container, :func:`pack_container`): the
 lattice covers the column's cross-section and is not periodic across it: the column's wall,
-taken from the same :class:`~peclet.packing.containers.Container` the pack used (its side wall
+taken from the same :class:`~peclet.packing.bed.containers.Container` the pack used (its side wall
 tree, whose signed distance inside the column is exactly ``R - r``), closes x and z, so no
 fluid leaves the box there. The flow runs along the axis (y), periodic over an axial section
 of the bed, by default its middle (the floor and the top each cut by
@@ -224,14 +224,14 @@ def pack_container(pack, container=None):
     ``container``: None (default: read from the ``results.json`` that ``peclet pack`` writes
     beside its ``pack.npz``, when ``pack`` is a path and that file names the pack's container;
     else the periodic box), "box" (the pack's periodic box), a spec "column:N" (N element
-    diameters, as ``peclet pack --container``), a :class:`~peclet.packing.containers.Container`
+    diameters, as ``peclet pack --container``), a :class:`~peclet.packing.bed.containers.Container`
     or the spec dict of ``results.json``. Returns (a column Container bound to the element's
     diameter, or None for the periodic box; a phrase saying where it came from). Only boxes
     and columns are accepted (PecletArgumentError naming ``container``); a column must hold the
     pack: its analysis period is the pack's box and every element centre is inside it.
     """
-    from peclet.packing.containers import Container, parse_container
-    from peclet.packing.freeze import Pack
+    from peclet.packing.bed.containers import Container, parse_container
+    from peclet.packing.bed.freeze import Pack
     source = "argument"
     d = 1.0
     if container is None:
@@ -292,7 +292,7 @@ def _wrap_y(pts, y0, H, y_mode):
 
 def column_window(pack, floor_y=0.0):
     """The default axial section of a column bed: (floor + c, top - c), top the highest
-    centre, c = min(2 D, (top - floor) / 3) (the bed analysis's crop, peclet.packing.report)."""
+    centre, c = min(2 D, (top - floor) / 3) (the bed analysis's crop, peclet.packing.output.report)."""
     top = float(pack.positions[:, 1].max())
     if not top > floor_y:
         raise PecletArgumentError("pack", "a bed above the floor", f"{pack.n} elements",
@@ -310,7 +310,7 @@ def pack_domain(pack, resolution, window=None, y_mode="wrap", container=None):
     be whole numbers of cells (to 1e-9 of a cell); a column's lattice is the square of
     2 ceil(R / h) + 2 nodes about its axis (the outer nodes are in the wall).
     """
-    from peclet.packing.analysis import bulk_windows
+    from peclet.packing.analysis.geometry import bulk_windows
     resolution = check_float("resolution", resolution, 4.0, 256.0)
     y_mode = check_choice("y_mode", y_mode, Y_MODES)
     column = container is not None
@@ -428,7 +428,7 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
                  magic=MAGIC_DEFAULT, scheme="linear", tol=1e-6, max_steps=100_000, Re=0.01,
                  progress=None, samples=8, area_n=160, mass="local", container=None,
                  seam_margin=1.0, balance_tol=None):
-    """The flow through ``pack`` (a :class:`~peclet.packing.freeze.Pack` or a path to one).
+    """The flow through ``pack`` (a :class:`~peclet.packing.bed.freeze.Pack` or a path to one).
 
     resolution: cells per D (>= 4; a warning (:class:`ThinWallWarning`) names the thinnest
     wall when it gets fewer than 4 cells). axis: "x", "y" (the bed's axis, default) or "z"
@@ -441,7 +441,7 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
     :func:`peclet.flow.solver.solve`. Other arguments: see :func:`pack_domain` and
     :func:`peclet.flow.solver.solve`. Returns a :class:`PackFlow`.
     """
-    from peclet.packing.freeze import Pack, load_pack
+    from peclet.packing.bed.freeze import Pack, load_pack
     pk = pack if isinstance(pack, Pack) else load_pack(pack)
     ax = _AXIS[check_choice("axis", axis, tuple(_AXIS))]
     Re = check_float("Re", Re, 0.0, 10.0, lo_open=True)
@@ -561,9 +561,9 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
 
 def _envelope_voidage(pk, window, cont, n=200_000, seed=0):
     """1 - (fraction of the window inside an element's envelope), Monte Carlo: the periodic
-    box window (peclet.packing.analysis.cover_fractions) or, in a column, uniform points
+    box window (peclet.packing.analysis.geometry.cover_fractions) or, in a column, uniform points
     in the cylinder over the window."""
-    from peclet.packing.analysis import PackGeometry, cover_fractions
+    from peclet.packing.analysis.geometry import PackGeometry, cover_fractions
     if cont is None:
         return 1.0 - cover_fractions(PackGeometry(pk), window, n)["f_env"]
     rng = np.random.default_rng(seed)

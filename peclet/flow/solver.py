@@ -447,7 +447,7 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
     (3/16 by default). tol: relative convergence tolerance of the superficial velocity (see the
     module docstring). max_steps: a stop (``converged`` False). check_every: steps between
     convergence checks (default: a tenth of the viscous time of the largest box side, between
-    20 and 500). progress: an object with ``update(n)`` (e.g. peclet.packing.progress.Progress)
+    20 and 500). progress: an object with ``update(n)`` (e.g. peclet.packing.bed.progress.Progress)
     or None. mass: "local" (default) or "global" mass correction of the wall rule (see the
     module docstring). balance_tol: the force balance's tolerance |B - 1| (default 1e-4;
     see the module docstring; 1 switches it off). Returns a :class:`FlowResult`.

@@ -60,20 +60,23 @@ velocity, speed, speed relative to the drum, shape id; plus the drum's rim circl
 Every file is written atomically (:mod:`peclet.core.files`).
 
 Checkpoints and resume. With ``checkpoint_every`` K, :func:`run_drum` keeps
-``checkpoint/`` in the output directory: after the settle, every K turning steps and at each
-phase's end it writes ``step-<k>/`` (``sim.npz``, the bitwise :meth:`Simulation.save`;
-``state.json``, the loop's step, clock, angle and the samples so far; ``arrays.npz``, the
-grain radii and the frames and snapshots kept so far) into a temporary directory renamed into
-place, then replaces ``checkpoint.json`` (kind, run id, spec, latest step) and removes the
-older step: an interrupt at any moment leaves a complete checkpoint. :func:`resume_drum`
-loads it and goes on from step k (:func:`~peclet.packing.series.run_phases` with ``start``):
+``checkpoint/`` in the output directory, in the run-checkpoint format pack runs use
+(:mod:`peclet.packing.bed.checkpoint`: ``spec.json``, ``ckpt-<k>/`` with ``run.json``,
+``checkpoint.json``): after the settle, every K turning steps and at each phase's end it writes
+``ckpt-<k>/`` (``sim.npz``, the bitwise :meth:`Simulation.save`; ``state.json``, the loop's
+step, clock, angle and the samples so far; ``arrays.npz``, the grain radii and the frames and
+snapshots kept so far) into a temporary directory renamed into place, then replaces
+``checkpoint.json`` and removes the older step: an interrupt at any moment leaves a complete
+checkpoint. A checkpoint of the earlier drum format (``step-<k>/``, the spec in
+``checkpoint.json``) is still read, and a run resumed from it goes on in the shared format. :func:`resume_drum`
+loads it and goes on from step k (:func:`~peclet.packing.experiments.series.run_phases` with ``start``):
 the results, the state hash included, are those of the uninterrupted run. It refuses a
 directory that is not a drum run's, parts of two runs, and stated parameters that differ
 from the run's.
 
 The phase loop (turn the wall at each phase's speed, count steps, keep the angle) and the
-ParaView writer are shared with the stirred column (:mod:`peclet.packing.series`); the pour
-protocols' kick/quench/settle base (:mod:`peclet.packing.protocols`) does not fit a run whose
+ParaView writer are shared with the stirred column (:mod:`peclet.packing.experiments.series`); the pour
+protocols' kick/quench/settle base (:mod:`peclet.packing.bed.protocols`) does not fit a run whose
 only driver is a turning wall, so the drum does not subclass it.
 """
 from __future__ import annotations
@@ -81,20 +84,19 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import sys
 import time
-import uuid
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from peclet.core import geom
-from peclet.core.files import (atomic_directory, atomic_write, file_sha256, remove_parts,
-                               write_json)
+from peclet.core.files import write_json
 from peclet.core.outputs import clear_outputs
-from peclet.core.validation import PecletArgumentError, check_choice, check_float, check_int
+from peclet.core.spec import Choice, Custom, Float, Int, Spec, Text, field
+from peclet.core.validation import PecletArgumentError, check_float
 
+from ..bed import checkpoint as ckpt
 from .series import Phase, check_work, grains_mesh, run_phases, write_series
 
 __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "G", "froude_of_rpm",
@@ -131,9 +133,10 @@ SPINUP_FROUDE = 1e-2
 OUTPUTS = ("results.json", "snapshots.png", "angle.png", "drum.pvd", "frames", "checkpoint")
 OUTPUT_DIRS = ("frames", "checkpoint")
 #: The checkpoint directory inside a run's output directory, its pointer file and kind.
-CHECKPOINT = "checkpoint"
-POINTER = "checkpoint.json"
+CHECKPOINT = ckpt.CHECKPOINT
+POINTER = ckpt.POINTER
 _KIND = "peclet drum checkpoint"
+_WHAT = "a drum run's output directory or its checkpoint/ (written by peclet drum)"
 
 ENDS = ("caps", "periodic")
 
@@ -148,79 +151,55 @@ def rpm_of_froude(fr, radius_d, grain_mm):
     return 60.0 / (2.0 * math.pi) * math.sqrt(fr * G / (radius_d * grain_mm * 1e-3))
 
 
+def _speed(arg, value, c):
+    """``froude`` or ``rpm`` (exactly one), as the Froude number (<= 100)."""
+    spec = c.spec
+    if (spec.froude is None) == (spec.rpm is None):
+        raise PecletArgumentError(c.name("froude"), f"given, or {c.name('rpm')} (exactly one)",
+                                  (spec.froude, spec.rpm))
+    grain = c.value("grain_mm")
+    if spec.froude is not None:
+        return check_float(arg, spec.froude, 0.0, 100.0, True)
+    rpm = check_float(c.name("rpm"), spec.rpm, 0.0, 1e5, True)
+    fr = froude_of_rpm(rpm, c.value("radius"), grain)
+    if not fr <= 100.0:
+        raise PecletArgumentError(c.name("rpm"), "a speed with Froude number <= 100", rpm,
+                                  f"Fr = {fr:.4g} for R = {c.value('radius'):g} D of "
+                                  f"{grain:g} mm")
+    return fr
+
+
 @dataclass(frozen=True)
-class DrumSpec:
+class DrumSpec(Spec):
     """A drum run (see the module notes). ``froude`` or ``rpm`` (exactly one); ``wall_mu`` and
     ``wall_e`` default to ``mu`` and ``e``; ``dt`` None: 4e-3 (spheres) or 2e-3 (elements),
     at most 0.05 D / (omega R); ``polydispersity`` p (spheres only): radii of 0.5 (1 - p),
-    0.5 and 0.5 (1 + p) D in equal shares."""
+    0.5 and 0.5 (1 + p) D in equal shares. :meth:`checked` (from :class:`~peclet.core.spec.
+    Spec`) checks every field as declared here (PecletArgumentError naming ``names[field]``,
+    e.g. the command line's flag) and resolves the defaults (``rpm`` to ``froude``)."""
 
-    element: str = "sphere"
-    radius: float = 10.0
-    length: float = 4.0
-    ends: str = "caps"
-    fill: float = 0.35
-    froude: float | None = None
-    rpm: float | None = None
-    grain_mm: float = 3.0
-    mu: float = 0.5
-    e: float = 0.3
-    wall_mu: float | None = None
-    wall_e: float | None = None
-    polydispersity: float = 0.1
-    revolutions: float = 2.0
-    warmup: float = 1.0
-    spinup: float = 0.0
-    dt: float | None = None
-    seed: int = 1
-    frames: int = 24
-    snapshots: int = 4
-    ribs: int | None = None
-
-    def checked(self, names=None):
-        """The spec with every field checked (PecletArgumentError naming ``names[field]``,
-        e.g. the command line's flag) and the defaults resolved."""
-        nm = lambda f: (names or {}).get(f, f)  # noqa: E731
-        f = lambda k, lo, hi, lo_open=False: check_float(nm(k), getattr(self, k), lo, hi,  # noqa
-                                                         lo_open)
-        if not isinstance(self.element, str) or not self.element:
-            raise PecletArgumentError(nm("element"), "'sphere' or a library element name",
-                                      self.element)
-        radius = f("radius", 3.0, 200.0)
-        length = f("length", 1.0, 200.0)
-        ends = check_choice(nm("ends"), self.ends, ENDS)
-        fill = f("fill", 0.0, 0.8, True)
-        if (self.froude is None) == (self.rpm is None):
-            raise PecletArgumentError(nm("froude"), f"given, or {nm('rpm')} (exactly one)",
-                                      (self.froude, self.rpm))
-        grain = f("grain_mm", 0.0, 1e4, True)
-        if self.froude is not None:
-            fr = f("froude", 0.0, 100.0, True)
-        else:
-            rpm = f("rpm", 0.0, 1e5, True)
-            fr = froude_of_rpm(rpm, radius, grain)
-            if not fr <= 100.0:
-                raise PecletArgumentError(nm("rpm"), "a speed with Froude number <= 100", rpm,
-                                          f"Fr = {fr:.4g} for R = {radius:g} D of "
-                                          f"{grain:g} mm")
-        mu = f("mu", 0.0, 10.0)
-        e = f("e", 0.0, 1.0)
-        wmu = mu if self.wall_mu is None else f("wall_mu", 0.0, 10.0)
-        we = e if self.wall_e is None else f("wall_e", 0.0, 1.0)
-        poly = check_float(nm("polydispersity"), self.polydispersity, 0.0, 0.5, hi_open=True)
-        revs = f("revolutions", 0.0, 100.0, True)
-        warm = f("warmup", 0.0, 100.0)
-        spin = f("spinup", 0.0, 3600.0)
-        dt = None if self.dt is None else f("dt", 0.0, 0.02, True)
-        seed = check_int(nm("seed"), self.seed, 0, 2 ** 63 - 1)
-        frames = check_int(nm("frames"), self.frames, 0, 10_000)
-        snaps = check_int(nm("snapshots"), self.snapshots, 1, 12)
-        ribs = int(round(2.0 * math.pi * radius / RIB_SPACING)) if self.ribs is None \
-            else check_int(nm("ribs"), self.ribs, 0, 720)
-        return replace(self, radius=radius, length=length, ends=ends, fill=fill, froude=fr,
-                       rpm=None, grain_mm=grain, mu=mu, e=e, wall_mu=wmu, wall_e=we,
-                       polydispersity=poly, revolutions=revs, warmup=warm, spinup=spin, dt=dt,
-                       seed=seed, frames=frames, snapshots=snaps, ribs=ribs)
+    element: str = field("sphere", Text("'sphere' or a library element name"))
+    radius: float = field(10.0, Float(3.0, 200.0))
+    length: float = field(4.0, Float(1.0, 200.0))
+    ends: str = field("caps", Choice(ENDS))
+    fill: float = field(0.35, Float(0.0, 0.8, lo_open=True))
+    froude: float | None = field(None, Custom(_speed))
+    rpm: float | None = field(None, Custom(lambda arg, value, c: None))   # in froude now
+    grain_mm: float = field(3.0, Float(0.0, 1e4, lo_open=True))
+    mu: float = field(0.5, Float(0.0, 10.0))
+    e: float = field(0.3, Float(0.0, 1.0))
+    wall_mu: float | None = field(None, Float(0.0, 10.0, if_none=lambda c: c.value("mu")))
+    wall_e: float | None = field(None, Float(0.0, 1.0, if_none=lambda c: c.value("e")))
+    polydispersity: float = field(0.1, Float(0.0, 0.5, hi_open=True))
+    revolutions: float = field(2.0, Float(0.0, 100.0, lo_open=True))
+    warmup: float = field(1.0, Float(0.0, 100.0))
+    spinup: float = field(0.0, Float(0.0, 3600.0))
+    dt: float | None = field(None, Float(0.0, 0.02, lo_open=True, if_none=None))
+    seed: int = field(1, Int(0, 2 ** 63 - 1))
+    frames: int = field(24, Int(0, 10_000))
+    snapshots: int = field(4, Int(1, 12))
+    ribs: int | None = field(None, Int(0, 720, if_none=lambda c: int(round(
+        2.0 * math.pi * c.value("radius") / RIB_SPACING))))
 
     @property
     def omega(self):
@@ -241,7 +220,7 @@ def _grains(spec):
         v = float(np.mean(vols))
         return dict(register=reg, radii=np.array(radii), r_b=max(radii), volume=v, envelope=v,
                     mass=np.array(vols), inv_inertia=np.array(inv_i), d=1.0, name="sphere")
-    from .api import resolve_element, element_model
+    from ..bed.api import resolve_element, element_model
 
     m = element_model(resolve_element(spec.element))
     d = float(m.d)
@@ -337,7 +316,7 @@ class Drum:
                    speed_given=None):
         """Refuse (before any work) a drum shorter than a grain, a fill its start lattice
         cannot hold, and a speed so slow the run's turning steps cannot finish
-        (:func:`~peclet.packing.series.check_work`; the error names ``speed_name`` and shows
+        (:func:`~peclet.packing.experiments.series.check_work`; the error names ``speed_name`` and shows
         ``speed_given``, default the Froude number)."""
         check_work(self.schedule(), self.count, speed_name,
                    self.spec.froude if speed_given is None else speed_given)
@@ -401,7 +380,7 @@ class Drum:
 
     # ------------------------------------------------------------------ schedule
     def schedule(self):
-        """[:class:`~peclet.packing.series.Phase`]: spin-up (if any), warm-up, measure."""
+        """[:class:`~peclet.packing.experiments.series.Phase`]: spin-up (if any), warm-up, measure."""
         spec, out = self.spec, []
         if spec.spinup > 0:
             om_s = max(self.omega, math.sqrt(SPINUP_FROUDE * G / spec.radius))
@@ -554,10 +533,10 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
     ``checkpoint_every``) and return ``{"complete": False, "steps_done": k, "checkpoint":
     path}``."""
     if threads is not None:
-        from .pipeline_checks import set_threads
+        from ..bed.threads import set_threads
         set_threads(threads)
     spec = spec.checked()
-    every, max_steps = _check_checkpoint_args(out, checkpoint_every, max_steps)
+    every, max_steps = ckpt.check_every(out, checkpoint_every, max_steps)
     drum = Drum(spec)
     drum.check_room()
     t0 = time.perf_counter()
@@ -573,7 +552,7 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
         previous = ()
     drum.build()
     st = dict(k=0, t=0.0, angle=0.0, samples=[], frames=[], snaps=[], seconds=0.0,
-              run=uuid.uuid4().hex, checkpoint_every=every)
+              run=ckpt.new_run(), checkpoint_every=every)
     st["seconds"] = time.perf_counter() - t0
     if cdir is not None:
         _checkpoint_write(cdir, spec, drum, st)
@@ -598,12 +577,12 @@ def resume_drum(path, out=None, progress=True, figures=True, threads=None, previ
     if given:
         same_spec(saved, given, names)
     if threads is not None:
-        from .pipeline_checks import set_threads
+        from ..bed.threads import set_threads
         set_threads(threads)
     every = st["checkpoint_every"] if checkpoint_every is None else checkpoint_every
     if out is None:
         out = os.path.dirname(cdir)
-    every, max_steps = _check_checkpoint_args(out, every, max_steps)
+    every, max_steps = ckpt.check_every(out, every, max_steps)
     from peclet.dem import Simulation
 
     t0 = time.perf_counter()
@@ -628,21 +607,6 @@ def resume_drum(path, out=None, progress=True, figures=True, threads=None, previ
                  keep_checkpoint, t0 - st["seconds"])
 
 
-def _check_checkpoint_args(out, every, max_steps):
-    if every is not None:
-        every = check_int("checkpoint_every", every, 0, 10 ** 9) or None    # 0: none
-    if every is not None:
-        if out is None:
-            raise PecletArgumentError("out", "a directory when checkpoint_every is given",
-                                      None)
-    if max_steps is not None:
-        max_steps = check_int("max_steps", max_steps, 0, 10 ** 12)
-        if every is None:
-            raise PecletArgumentError("checkpoint_every", "given with max_steps (a stopped "
-                                      "run resumes from its checkpoint)", None)
-    return every, max_steps
-
-
 class _Stop(Exception):
     """max_steps reached (the checkpoint is written)."""
 
@@ -651,7 +615,7 @@ def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
           keep_checkpoint, t_start):
     """Turn the drum from the state ``st`` (step k, clock, angle, what was observed so far)
     to the end of its schedule, observing and checkpointing; returns the results."""
-    from .progress import Progress
+    from ..bed.progress import Progress
 
     spec, sim = drum.spec, drum.sim
     sched = drum.schedule()
@@ -729,7 +693,7 @@ def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
     if out is not None:
         _write(out, res, drum, frames, snaps, samples, figures, previous)
         if cdir is not None and not keep_checkpoint:
-            remove_parts(cdir, names=(POINTER,), prefixes=("step-", ".tmp-step-"))
+            ckpt.remove(cdir, own=())
     return res
 
 
@@ -737,22 +701,7 @@ def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
 def checkpoint_dir(path, name="path"):
     """The checkpoint directory of a drum run at ``path`` (its output directory or the
     ``checkpoint/`` in it); PecletArgumentError naming ``name`` if there is none."""
-    what = "a drum run's output directory or its checkpoint/ (written by peclet drum)"
-    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
-        raise PecletArgumentError(name, what, path)
-    p = os.path.abspath(os.fspath(path))
-    if not os.path.exists(p):
-        raise PecletArgumentError(name, what, os.fspath(path), "it does not exist")
-    if not os.path.isdir(p):
-        raise PecletArgumentError(name, what, os.fspath(path), "it is a file")
-    for c in (os.path.join(p, CHECKPOINT), p):
-        if os.path.isfile(os.path.join(c, POINTER)):
-            return c
-    done = os.path.isfile(os.path.join(p, "results.json"))
-    raise PecletArgumentError(name, what, os.fspath(path),
-                              "a finished run (its checkpoint is removed at the end unless "
-                              "--keep-checkpoint)" if done else f"no {CHECKPOINT}/{POINTER} "
-                              "in it")
+    return ckpt.find(path, name, _WHAT)
 
 
 def _frames_arrays(prefix, frames):
@@ -775,82 +724,26 @@ def _frames_of(arrays, prefix):
 
 
 def _checkpoint_write(cdir, spec, drum, st):
-    """Write step ``st["k"]`` of the run into ``cdir``: ``step-<k>/`` (``sim.npz``, the
-    loop's state ``state.json``, the frames and radii ``arrays.npz``) made whole in a
-    temporary directory and renamed into place, then ``checkpoint.json`` (the spec, the run
-    id, the latest step) replaced atomically, then the older step removed."""
-    os.makedirs(cdir, exist_ok=True)
-    name = f"step-{st['k']:010d}"
-    final = os.path.join(cdir, name)
-    for old in os.listdir(cdir):           # debris of an interrupted write
-        if old.startswith(".tmp-step-"):
-            shutil.rmtree(os.path.join(cdir, old), ignore_errors=True)
-    if os.path.isdir(final):
-        shutil.rmtree(final)
-
-    def fill(tmp):
-        drum.sim.save(os.path.join(tmp, "sim.npz"))
-
-        def w(path):
-            with open(path, "wb") as fh:
-                np.savez(fh, radii=np.asarray(drum.radii, np.float64),
-                         **_frames_arrays("frames", st["frames"]),
-                         **_frames_arrays("snaps", st["snaps"]))
-        atomic_write(os.path.join(tmp, "arrays.npz"), w)
-        state = dict(kind=_KIND, run=st["run"], k=st["k"], t=st["t"], angle=st["angle"],
-                     seconds=st["seconds"], checkpoint_every=st.get("checkpoint_every"),
-                     wall=drum.wall, settle_steps=drum.settle_steps,
-                     samples=st["samples"],
-                     sha256={f: file_sha256(os.path.join(tmp, f)) for f in ("sim.npz",
-                                                                        "arrays.npz")})
-
-        def j(path):                       # NaN kept (an angle without a surface)
-            with open(path, "w") as fh:
-                json.dump(state, fh, allow_nan=True)
-        atomic_write(os.path.join(tmp, "state.json"), j)
-
-    atomic_directory(final, fill, prefix=".tmp-step-")
-    write_json(os.path.join(cdir, POINTER), dict(kind=_KIND, run=st["run"], latest=name,
-                                                  step=st["k"], spec=asdict(spec)))
-    for old in os.listdir(cdir):
-        if old.startswith("step-") and old != name:
-            shutil.rmtree(os.path.join(cdir, old), ignore_errors=True)
+    """Write step ``st["k"]`` of the run into ``cdir``
+    (:func:`peclet.packing.bed.checkpoint.write_loop_step`): ``ckpt-<k>/`` holds ``sim.npz``,
+    the loop's state ``state.json`` and the frames and radii ``arrays.npz``."""
+    state = dict(t=st["t"], angle=st["angle"], seconds=st["seconds"],
+                 checkpoint_every=st.get("checkpoint_every"), wall=drum.wall,
+                 settle_steps=drum.settle_steps, samples=st["samples"])
+    arrays = dict(radii=np.asarray(drum.radii, np.float64),
+                  **_frames_arrays("frames", st["frames"]),
+                  **_frames_arrays("snaps", st["snaps"]))
+    ckpt.write_loop_step(cdir, _KIND, asdict(spec), st["run"], st["k"], drum.sim, state,
+                         arrays)
 
 
 def read_checkpoint(cdir, name="path"):
     """(checked spec, state dict, arrays dict, path of ``sim.npz``) of the latest step of the
-    checkpoint directory ``cdir`` (see :func:`checkpoint_dir`); a pointer that is not a drum
-    checkpoint's, a missing or damaged part, parts of two runs or a file that is not the one
-    hashed: PecletArgumentError naming ``name``."""
-    shown = cdir
-
-    def bad(detail):
-        return PecletArgumentError(name, "a drum run's output directory or its checkpoint/ "
-                                   "(written by peclet drum)", shown, detail)
-    try:
-        with open(os.path.join(cdir, POINTER)) as fh:
-            ptr = json.load(fh)
-    except (OSError, ValueError):
-        raise bad(f"{POINTER} is not readable JSON") from None
-    if not isinstance(ptr, dict) or ptr.get("kind") != _KIND:
-        raise bad(f"{POINTER} is not a drum checkpoint's (kind "
-                  f"{ptr.get('kind') if isinstance(ptr, dict) else None!r})")
-    try:
-        spec = DrumSpec(**ptr["spec"]).checked()
-        d = os.path.join(cdir, os.path.basename(str(ptr["latest"])))
-        with open(os.path.join(d, "state.json")) as fh:
-            st = json.load(fh)
-        with np.load(os.path.join(d, "arrays.npz"), allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError, KeyError, TypeError, PecletArgumentError) as exc:
-        raise bad(f"an incomplete or damaged checkpoint: {exc}") from None
-    if st.get("kind") != _KIND or st.get("run") != ptr.get("run") or st.get("k") != \
-            ptr.get("step"):
-        raise bad(f"{os.path.basename(d)} is not the step {POINTER} names (parts of two runs)")
-    for f, h in (st.get("sha256") or {}).items():
-        if file_sha256(os.path.join(d, f)) != h:
-            raise bad(f"{os.path.basename(d)}/{f} is not the file its state.json hashed")
-    return spec, st, arrays, os.path.join(d, "sim.npz")
+    checkpoint directory ``cdir`` (see :func:`checkpoint_dir`; this format or the drum's
+    earlier one); a pointer that is not a drum checkpoint's, a missing or damaged part, parts
+    of two runs or a file that is not the one hashed: PecletArgumentError naming ``name``."""
+    return ckpt.read_loop_step(cdir, _KIND, "drum", name, _WHAT,
+                               lambda d: DrumSpec(**d).checked())
 
 
 def same_spec(saved, given, names=None):
@@ -935,16 +828,14 @@ def _write_series(out, drum, frames):
 
 
 def _snapshot_figure(path, drum, snaps, res):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from peclet.core.figures import save_png, subplots
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle
 
     R = drum.spec.radius * drum.d
     vmax = max(drum.omega * R, 0.5 * math.sqrt(G * drum.d) * drum.d)
     n = max(1, len(snaps))
-    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.4), squeeze=False)
+    fig, axes = subplots(1, n, figsize=(3.2 * n, 3.4), squeeze=False)
     for ax, f in zip(axes[0], snaps):
         X, V = f["X"], f["V"]
         order = np.argsort(X[:, 2])
@@ -971,16 +862,13 @@ def _snapshot_figure(path, drum, snaps, res):
     fig.suptitle(f"{res['element']}, Fr = {res['froude']:.3g}, mu = {drum.spec.mu:g}: "
                  f"{res['regime']}", fontsize=10)
     fig.colorbar(pc, ax=list(axes[0]), shrink=0.8, label="speed (D/time)")
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
+    save_png(fig, path, dpi=110)
 
 
 def _angle_figure(path, samples, res):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from peclet.core.figures import save_png, subplots
 
-    fig, ax = plt.subplots(figsize=(6, 3.2))
+    fig, ax = subplots(figsize=(6, 3.2))
     for ph, c in (("warmup", "0.6"), ("measure", "C0")):
         s = [x for x in samples if x["phase"] == ph]
         ax.plot([x["revolutions"] for x in s], [x["angle"] for x in s], ".", ms=2, color=c,
@@ -993,5 +881,4 @@ def _angle_figure(path, samples, res):
     ax.set_title(f"Fr = {res['froude']:.3g}: {res['regime']}", fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
+    save_png(fig, path, dpi=110)

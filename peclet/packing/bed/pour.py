@@ -7,7 +7,7 @@ so a seed reproduces it exactly; the DEM step itself is deterministic at any thr
 (docs/architecture.md §7), so the whole pour is reproducible from the seed.
 
 This is the page's entry point; the protocol itself (:class:`PageProtocol`, the start cloud and
-the stepping loop) lives in :mod:`peclet.packing.protocols`, shared with
+the stepping loop) lives in :mod:`peclet.packing.bed.protocols`, shared with
 :func:`peclet.packing.pack`.
 """
 from __future__ import annotations
@@ -28,7 +28,7 @@ from .protocols import start_cloud as _start_cloud
 __all__ = ["Protocol", "PourResult", "start_cloud", "pour", "y_top_for"]
 
 #: The page's protocol, kept under its old name (not the base class of every protocol,
-#: :class:`peclet.packing.protocols.Protocol`).
+#: :class:`peclet.packing.bed.protocols.Protocol`).
 Protocol = PageProtocol
 
 #: The page's domain top; a taller start cloud raises it (see :func:`y_top_for`).
@@ -60,7 +60,7 @@ class PourResult:
 
 def start_cloud(n, box, seed=5, y0=1.2, gap=1.55, dy=0.15, lookback=14):
     """The page's loose start cloud in the periodic box of side ``box``, from
-    ``numpy.random.default_rng(seed)`` (see :func:`peclet.packing.protocols.start_cloud`).
+    ``numpy.random.default_rng(seed)`` (see :func:`peclet.packing.bed.protocols.start_cloud`).
     Returns (positions (n, 3), quaternions (n, 4))."""
     check_int("n", n, 1)
     box = check_float("box", box, 0.0, lo_open=True)

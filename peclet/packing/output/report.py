@@ -1,10 +1,10 @@
-"""What ``peclet pack`` (and the column benchmark) make of a :class:`~peclet.packing.api.
+"""What ``peclet pack`` (and the column benchmark) make of a :class:`~peclet.packing.bed.api.
 PackResult`: the bed's analysis (bulk voidage and f_env with standard errors over axial
 windows, the radial profile of a column and its features, the axial profile, orientation,
 coordination with wall contacts), figures and exports, ``results.json`` and a results table.
 
-The measuring itself is :mod:`peclet.packing.profiles`, the files :mod:`peclet.packing.export`
-and :mod:`peclet.packing.bed_figures`; this module only says which are computed for which
+The measuring itself is :mod:`peclet.packing.analysis.profiles`, the files :mod:`peclet.packing.output.export`
+and :mod:`peclet.packing.output.bed_figures`; this module only says which are computed for which
 container, with which cuts. Lengths in element diameters D unless said otherwise.
 """
 from __future__ import annotations
@@ -69,10 +69,10 @@ def analyse(res, out=None, figures=True, samples=100_000, shell_samples=3000, ex
     :data:`STL_PER_ELEMENT_MAX` elements; "per-element": the directory ``bed_stl/`` of one
     binary file per element and ``container.stl``), VTU (with the container) and transforms
     CSV, the element meshed at ``stl_resolution`` (default
-    :data:`peclet.packing.export.DEFAULT_RESOLUTION`; see :func:`peclet.packing.export.
+    :data:`peclet.packing.output.export.DEFAULT_RESOLUTION`; see :func:`peclet.packing.output.export.
     export_mesh`), what the mesh came to in ``rep["export"]``. ``timing`` holds the seconds
     of each part."""
-    from . import profiles
+    from ..analysis import profiles
 
     pack, cont, d = res.pack, res.container, res.container.d
     crop, top = _crop(pack, cont)
@@ -194,7 +194,7 @@ def _element_doc(res):
     the element's unit, D = 1 at the defaults), their canonical ``--element`` text (re-parsable;
     None for a user's tree) and the shell probe count the DEM used (it follows the thinnest
     wall: ``api.element_model``)."""
-    from .elements import ELEMENTS, element_text
+    from ..bed.elements import ELEMENTS, element_text
 
     name, params = res.spec.get("element"), res.spec.get("element_params") or {}
     text = element_text(name, params) if name in ELEMENTS and params else None

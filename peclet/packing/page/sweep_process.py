@@ -1,6 +1,6 @@
 """Step 6's wall-thickness sweep in a child process at a low priority, beside the pour.
 
-The sweep (:func:`peclet.packing.analysis.sweep_fractions`: six quadratures of the ring at
+The sweep (:func:`peclet.packing.analysis.geometry.sweep_fractions`: six quadratures of the ring at
 other wall thicknesses, about 10 s of two cores) needs no pack, and the pour, the analysis and
 the figures that follow the element's measurement leave a core partly idle (the pour's step is
 not all parallel; the analysis and figures are mostly one thread). :class:`SweepProcess` runs
@@ -55,7 +55,7 @@ except (AttributeError, OSError):
     except (AttributeError, OSError):
         pass
 import numba
-from peclet.packing.analysis import sweep_fractions
+from peclet.packing.analysis.geometry import sweep_fractions
 args = json.loads(sys.argv[1])
 if args["threads"] is not None:
     numba.set_num_threads(args["threads"])
@@ -117,7 +117,7 @@ class SweepProcess:
             self.child.communicate()
 
     def _collect(self):
-        from .analysis import sweep_fractions
+        from ..analysis.geometry import sweep_fractions
 
         a = self.args
         if not a["thicknesses"]:

@@ -184,7 +184,7 @@ def save_pack(path, pack: Pack):
     Returns the path.
     """
     if not isinstance(pack, Pack):
-        raise PecletArgumentError("pack", "a peclet.packing.freeze.Pack", pack)
+        raise PecletArgumentError("pack", "a peclet.packing.bed.freeze.Pack", pack)
     check_writable_path(path, "path")
     try:
         pk = Pack(**{f.name: getattr(pack, f.name) for f in fields(Pack)})
@@ -282,7 +282,7 @@ def pack_to_simulation(path_or_pack, material=(0.15, 0.0, 0.5), iterations=(10, 
     periodic in x and z over [0, L), an analytic box floor below y = 0, the given material
     (e_n, e_t, mu), solver iterations, gravity and time step; the domain's top ``y_top``
     defaults to the page's 60 D or, for a taller pack, 2 D above its highest centre
-    (:func:`peclet.packing.pour.y_top_for`). Returns (sim, shape_id)."""
+    (:func:`peclet.packing.bed.pour.y_top_for`). Returns (sim, shape_id)."""
     from peclet.dem import Simulation
 
     from .pour import y_top_for

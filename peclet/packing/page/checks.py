@@ -1,4 +1,4 @@
-"""Every check of ``peclet pall-ring`` / :func:`peclet.packing.pipeline.run`, made before the ring
+"""Every check of ``peclet pall-ring`` / :func:`peclet.packing.page.pipeline.run`, made before the ring
 is built (the build and the pour are minutes; a refusal here costs at most a second or two,
 measured: 0.01-2.3 s, the first call paying for the ring's radius bound).
 
@@ -21,7 +21,7 @@ the command line's names are used when ``cli=True``):
      ``sqrt(2 y_c / g)``, at most the time of the pour, taps and relaxation. A narrow box
      stacks the cloud high (it is the page's algorithm: each ring needs 1.55 D of room from the
      last 14), so this rule is what refuses 2000 rings in the page's 3.5 D box.
-  The domain then reaches :func:`~peclet.packing.pour.y_top_for` (y_c): the page's 60 D, or
+  The domain then reaches :func:`~peclet.packing.bed.pour.y_top_for` (y_c): the page's 60 D, or
   more for a taller cloud, so its height follows from the count.
 - ``mc_samples``: an integer in [MC_SAMPLES_MIN, MC_SAMPLES_MAX]. From 1000 samples on, the
   binomial standard error sqrt(p (1 - p) / n) of a voidage is at most 0.016 and its normal
@@ -51,9 +51,9 @@ from peclet.core.outputs import check_output_dir, clear_outputs
 from peclet.core.validation import (PecletArgumentError, check_bool, check_float, check_int,
                                      describe_range)
 
-from .pour import Protocol, start_cloud, y_top_for
+from ..bed.pour import Protocol, start_cloud, y_top_for
 
-__all__ = ["check_run", "clear_outputs", "set_threads", "RunPlan", "OUTPUTS", "RINGS_MAX",
+__all__ = ["check_run", "clear_outputs", "RunPlan", "OUTPUTS", "RINGS_MAX",
            "MC_SAMPLES_MIN", "MC_SAMPLES_MAX", "SHELL_POINTS_MIN", "SHELL_POINTS_MAX",
            "STEPS_SCALE_MAX", "BOX_MAX"]
 
@@ -95,15 +95,6 @@ class RunPlan:
     previous: tuple         # files of an earlier run in ``out`` (removed when overwriting)
 
 
-def set_threads(threads, name="threads"):
-    """``numba.set_num_threads(threads)`` after checking 1 <= threads <= NUMBA_NUM_THREADS."""
-    import numba
-
-    t = check_int(name, threads, 1, int(numba.config.NUMBA_NUM_THREADS))
-    numba.set_num_threads(t)
-    return t
-
-
 @lru_cache(maxsize=1)
 def ring_radius_bound():
     """An upper bound of the page ring's bounding radius about its centre of mass (D).
@@ -114,7 +105,7 @@ def ring_radius_bound():
     standard errors bounds ``|c - com|`` (measured by quadrature: 5.6e-4 D; the bound adds
     about 0.01 D).
     """
-    from . import elements
+    from ..bed import elements
 
     ring = elements.pall_ring()
     c, r, _ = ring.builder.node_bound(ring.root)
@@ -151,7 +142,7 @@ def check_run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, bo
               mc_samples=400_000, shell_points=1200, overwrite=False, particle=None,
               quad_n=32, shell_resolution=112, sweep=(), sweep_n=32, mesh_n=150,
               progress=True, write_figures=True, animation=False, log=None, cli=False):
-    """Check the arguments of :func:`~peclet.packing.pipeline.run` (the module notes state the
+    """Check the arguments of :func:`~peclet.packing.page.pipeline.run` (the module notes state the
     rules) and return a :class:`RunPlan`; raise :class:`PecletArgumentError` naming the first
     bad one (with ``cli=True`` by its command-line option). Cheap: no tree is built and nothing
     is written. ``particle``, when given, supplies the bounding radius and skips

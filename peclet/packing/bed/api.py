@@ -33,7 +33,7 @@ from .containers import Container, parse_container
 from .elements import ELEMENTS, Element, parse_element
 from .freeze import Pack
 from .material import Material, as_material
-from .pipeline_checks import set_threads
+from .threads import set_threads
 from .progress import Progress, compile_note, ms_per_step
 from .protocols import G, Body, RunState, drive, insert_bodies, new_simulation, parse_protocol
 
@@ -325,7 +325,7 @@ class PackResult:
 
 
 def _set_threads(threads):
-    """pipeline_checks.set_threads (the one check and call), None leaving numba's setting."""
+    """threads.set_threads (the one check and call), None leaving numba's setting."""
     return None if threads is None else set_threads(threads)
 
 

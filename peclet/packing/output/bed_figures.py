@@ -1,10 +1,10 @@
 """Figures of a packed bed: the radial and axial voidage profiles and a rendered view of the bed.
 
-Drawn on :class:`matplotlib.figure.Figure` with the Agg canvas (no pyplot state, no backend
-switch) and saved as PNG through :func:`peclet.core.files.atomic_write`.
+Drawn through :mod:`peclet.core.figures` (a Figure on its own Agg canvas: no pyplot state, no
+backend switch), saved as PNG atomically.
 
 The bed view is a small z-buffer rasteriser (one Numba kernel) over SHADED SURFACE MESHES: the
-element's home mesh (:func:`peclet.packing.export.element_mesh`) is moved by every pose and its
+element's home mesh (:func:`peclet.packing.output.export.element_mesh`) is moved by every pose and its
 triangles are filled with Lambert-shaded colours, nearest surface winning per pixel. It renders
 thousands of elements in seconds, where matplotlib's 3-D polygons cost minutes; the kernel
 loops in a fixed order, so the image is the same at any thread count.
@@ -14,16 +14,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
-from matplotlib.figure import Figure
 from numba import njit
 
-from peclet.core.files import atomic_write
+from peclet.core.figures import new_figure, save_png
 from peclet.core.validation import PecletArgumentError, check_bool, check_float, check_int
 
-from .profiles import de_klerk_voidage
+from ..analysis.profiles import de_klerk_voidage
 
 __all__ = ["radial_profile_figure", "axial_profile_figure", "bed_view", "render_bed"]
 
@@ -31,9 +29,7 @@ _RC = dict(dpi=130)
 
 
 def _save(fig, path):
-    FigureCanvasAgg(fig)
-    return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=_RC["dpi"],
-                                                      bbox_inches="tight"))
+    return save_png(fig, path, dpi=_RC["dpi"], bbox_inches="tight")
 
 
 def _style(ax):
@@ -46,11 +42,11 @@ def _style(ax):
 def radial_profile_figure(prof, path, sphere=False, eps_bulk=0.39, title=None):
     """eps(z) against the distance from the wall z (element diameters), with a +-2 s.e. band;
     for a bed of spheres (``sphere``) also de Klerk's correlation with bulk ``eps_bulk``.
-    ``prof`` as returned by :func:`peclet.packing.profiles.radial_profile`."""
+    ``prof`` as returned by :func:`peclet.packing.analysis.profiles.radial_profile`."""
     z = np.asarray(prof["z"], float)
     e = np.asarray(prof["eps"], float)
     se = np.asarray(prof["eps_se"], float)
-    fig = Figure(figsize=(6.4, 3.3))
+    fig = new_figure(figsize=(6.4, 3.3))
     ax = fig.add_subplot(1, 1, 1)
     ax.fill_between(z, e - 2 * se, e + 2 * se, color="#4c72b0", alpha=0.25, lw=0,
                     label=r"$\pm 2$ standard errors")
@@ -76,12 +72,12 @@ def radial_profile_figure(prof, path, sphere=False, eps_bulk=0.39, title=None):
 
 def axial_profile_figure(prof, path, d_elem=1.0, floor_y=0.0, bulk=None, title=None):
     """Slab voidage against height above the floor (element diameters), height vertical.
-    ``bulk`` (a :func:`~peclet.packing.profiles.bulk` result) adds the bulk value with its
+    ``bulk`` (a :func:`~peclet.packing.analysis.profiles.bulk` result) adds the bulk value with its
     standard error and greys the cropped floor and free-surface zones."""
     y = (np.asarray(prof["y"], float) - floor_y) / d_elem
     e = np.asarray(prof["eps"], float)
     se = np.asarray(prof["eps_se"], float)
-    fig = Figure(figsize=(3.6, 4.6))
+    fig = new_figure(figsize=(3.6, 4.6))
     ax = fig.add_subplot(1, 1, 1)
     ax.fill_betweenx(y, e - 2 * se, e + 2 * se, color="#4c72b0", alpha=0.25, lw=0)
     ax.plot(e, y, color="#4c72b0", lw=1.1, label="slab voidage")
@@ -230,7 +226,7 @@ def bed_view(pack, home_mesh, path, cutaway_center_xz=None, floor_y=0.0, d_elem=
         panels.append(("cut-away half (plane through the axis)", keep))
     imgs = [render_bed(pack, home_mesh, col, width=width, azim=azim, keep=k) for _, k in panels]
     hmax = max(im.shape[0] for im in imgs)
-    fig = Figure(figsize=(3.4 * len(panels) + 0.8, 3.4 * hmax / width + 0.7))
+    fig = new_figure(figsize=(3.4 * len(panels) + 0.8, 3.4 * hmax / width + 0.7))
     for k, ((ttl, _), im) in enumerate(zip(panels, imgs)):
         ax = fig.add_subplot(1, len(panels), k + 1)
         ax.imshow(im, interpolation="lanczos")

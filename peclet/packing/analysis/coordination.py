@@ -8,7 +8,7 @@ less visibly, every composed particle. The engine's narrow phase is exact for sp
 distance) and, for composed particles, runs both probe directions against the exact trees with
 the same probes that carried the load while the pack was made, so it counts the contacts the
 bed actually stands on. The probe test survives only where it measures something else: the
-overlap depth (:func:`peclet.packing.analysis.probe_overlap`).
+overlap depth (:func:`peclet.packing.analysis.geometry.probe_overlap`).
 
 Conventions: lengths are world lengths (the pack's unit, D = element diameter for library
 elements); a pair touches when the engine's signed gap (< 0 a penetration) is below ``gap``;
@@ -26,7 +26,7 @@ import numpy as np
 from peclet.core.geom import SceneBuilder
 from peclet.core.validation import PecletArgumentError, check_bool, check_float
 
-from .freeze import Pack
+from ..bed.freeze import Pack
 
 __all__ = ["engine_coordination", "sphere_radius_of", "STABLE_CONTACTS"]
 
@@ -76,7 +76,7 @@ def _periodic_images(pack: Pack, reach):
 def engine_coordination(pack: Pack, walls=(), gap=1e-3, periodic=True, sphere_radius=None):
     """Contacts per element from the DEM engine's contact detection at the pack's state.
 
-    pack: a :class:`~peclet.packing.freeze.Pack` (its shell probes are the engine's probes for a
+    pack: a :class:`~peclet.packing.bed.freeze.Pack` (its shell probes are the engine's probes for a
     composed element). walls: a sequence of ``(SceneBuilder, root)`` solid trees in the world
     frame (phi < 0 inside the wall material: a floor, a column's complement); each is one
     contact partner. gap: a world length >= 0; an element pair or element-wall pair touches
@@ -95,7 +95,7 @@ def engine_coordination(pack: Pack, walls=(), gap=1e-3, periodic=True, sphere_ra
     from peclet.dem import Simulation
 
     if not isinstance(pack, Pack):
-        raise PecletArgumentError("pack", "a peclet.packing.freeze.Pack", type(pack).__name__)
+        raise PecletArgumentError("pack", "a peclet.packing.bed.freeze.Pack", type(pack).__name__)
     g = check_float("gap", gap, 0.0)
     per = check_bool("periodic", periodic)
     walls = list(walls)

@@ -2,7 +2,7 @@
 :func:`peclet.core.geom.certificate.check_equation1`, re-exported here as
 ``certificate_check``, and the marching-cubes area is :mod:`peclet.core.geom.mesh`'s).
 
-All measurements are taken on a :class:`~peclet.packing.freeze.Pack` (world frame: y up, floor
+All measurements are taken on a :class:`~peclet.packing.bed.freeze.Pack` (world frame: y up, floor
 at y = 0, periodic in x and z with sides ``pack.box``), so they are reproducible from the frozen
 file alone. Two Numba kernels do the work, both over the flat program arrays of the geometry core
 (one compiled kernel for every tree) and both writing only their own output slots, so results
@@ -15,7 +15,7 @@ are bitwise the same at any thread count:
   target's phi over the prober's shell probes: the deepest probe gives the overlap depth
   (:func:`probe_overlap`). It is NOT a contact count: two convex curved surfaces touch at a
   point no probe sits on, so coordination comes from the engine's own contact detection
-  (:func:`peclet.packing.coordination.engine_coordination`).
+  (:func:`peclet.packing.analysis.coordination.engine_coordination`).
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from peclet.core.geom import kernels as K
 from peclet.core.geom.certificate import check_equation1 as certificate_check
 from peclet.core.geom.program import concatenate
 
-from .freeze import Pack
+from ..bed.freeze import Pack
 
 __all__ = ["PackGeometry", "compile_kernels", "bulk_windows", "cover_fractions", "probe_overlap",
            "orientation", "floor_and_box", "certificate_check", "wall_sweep", "sweep_fractions",
@@ -228,7 +228,7 @@ def probe_overlap(geo: PackGeometry, gap=0.0):
     other's tree (``gap = 0``: the page's strictly-inside test). Its purpose is the overlap
     depth; its per-body counts (``probe_counts``, ``probe_z_mean``) are NOT a coordination
     number: they miss every point contact between curved surfaces (a sphere bed reads
-    Z ~ 1.2 instead of 4.6), see :mod:`peclet.packing.coordination`. Returns a dict:
+    Z ~ 1.2 instead of 4.6), see :mod:`peclet.packing.analysis.coordination`. Returns a dict:
     probe_counts (N,), probe_z_mean, pairs (ordered candidate pairs), max_depth (deepest probe
     of any body inside another, a length) and depths (per probe-touching pair).
     """
@@ -302,8 +302,8 @@ def floor_and_box(pack: Pack, y_top=None):
 def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
     """eps(t) = 1 - f_env s(t) with s(t) = V_solid(t) / V_env by implicit quadrature.
 
-    ``make(t)`` returns an :class:`~peclet.packing.elements.Element` (default: the page's sweep
-    ring :func:`~peclet.packing.elements.pall_ring_of_thickness`). Volumes come from
+    ``make(t)`` returns an :class:`~peclet.packing.bed.elements.Element` (default: the page's sweep
+    ring :func:`~peclet.packing.bed.elements.pall_ring_of_thickness`). Volumes come from
     ``SceneBuilder.body_properties`` (quadrature, not Monte Carlo) with its volume_error.
     Returns a list of dicts: t, t_over_d, s, s_err, eps, eps_err (propagated from s_err and
     f_env_se, added in quadrature). The same as :func:`sweep_voidage` of
@@ -315,7 +315,7 @@ def wall_sweep(thicknesses, f_env, f_env_se=0.0, make=None, **quad_kw):
 def sweep_fractions(thicknesses, make=None, **quad_kw):
     """Per wall thickness t (in D): t, t_over_d, s = V_solid(t) / V_env and its error s_err, by
     quadrature (see :func:`wall_sweep` for ``make`` and ``quad_kw``)."""
-    from .elements import pall_ring_of_thickness
+    from ..bed.elements import pall_ring_of_thickness
 
     make = pall_ring_of_thickness if make is None else make
     rows = []

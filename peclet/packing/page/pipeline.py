@@ -21,15 +21,18 @@ from peclet.core.geom.quadrature.refine import kernels_cached as quadrature_cach
 from peclet.core.geom.transforms import quat_to_matrix
 from peclet.core.outputs import recording
 
-from . import analysis, coordination, elements
-from .elements import home_transform
-from .freeze import Pack, save_pack
-from .pipeline_checks import OUTPUTS, check_run, clear_outputs, set_threads
-from .pour import pour
-from .progress import ms_per_step
+from ..analysis import coordination
+from ..analysis import geometry as analysis
+from ..bed import elements
+from ..bed.elements import home_transform
+from ..bed.freeze import Pack, save_pack
+from ..bed.threads import set_threads
+from .checks import OUTPUTS, check_run, clear_outputs
+from ..bed.pour import pour
+from ..bed.progress import ms_per_step
 from .sweep_process import SweepProcess
 
-__all__ = ["run", "check_run", "PAGE", "results_table", "set_threads", "OUTPUTS",
+__all__ = ["run", "check_run", "PAGE", "results_table", "OUTPUTS",
            "check_stages"]
 
 #: The reference page's Results (Step 7 table and the text), for the side-by-side table.
@@ -46,14 +49,14 @@ SWEEP_TOL = 1e-4
 
 
 #: Contact gap (in D) for coordination: two rings (or a ring and the floor) whose gap in the
-#: engine's own contact detection (:mod:`peclet.packing.coordination`) is below it touch. The
+#: engine's own contact detection (:mod:`peclet.packing.analysis.coordination`) is below it touch. The
 #: page counted a probe strictly inside the other tree (gap 0), which only works for an engine
 #: that lets rings overlap (its max overlap was 23% of the wall); ours removes overlap and
 #: leaves touching rings at gaps of its resting slop (~4e-4 D).
 CONTACT_GAP = 1e-3
 
 def _page_floor(box):
-    """The page's floor as a solid tree (:func:`peclet.packing.freeze.add_floor`'s box)."""
+    """The page's floor as a solid tree (:func:`peclet.packing.bed.freeze.add_floor`'s box)."""
     from peclet.core.geom import SceneBuilder
 
     fb = SceneBuilder()
@@ -76,7 +79,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     ``elements.pall_ring()`` — built on a fresh one, whose node indices are deterministic),
     to skip Step 3's build; sweep: wall thicknesses t
     (in D) for Step 6 and sweep_n their quadrature resolution (computed in a low-priority child
-    process beside the measurement and the pour, :mod:`peclet.packing.sweep_process`: the same
+    process beside the measurement and the pour, :mod:`peclet.packing.page.sweep_process`: the same
     rows bit for bit; read from the results cache when an earlier run computed them,
     ``sweep_source`` in the result); mesh_n: marching-cubes
     lattice for the surface area; overwrite: replace the files of an earlier run in ``out``
@@ -90,7 +93,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     :func:`peclet.flow.page.check_resolution`).
 
     Every argument is checked before any work
-    (:func:`~peclet.packing.pipeline_checks.check_run`, which states the rules: ring cap, box
+    (:func:`~peclet.packing.page.checks.check_run`, which states the rules: ring cap, box
     size for the element and the count, samples):
     a bad one raises :class:`~peclet.core.validation.PecletArgumentError` and nothing is
     written. The domain's height follows from the count (the start cloud's top).
@@ -119,7 +122,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
         # is measured (its quadrature compiles here), instead of after it (peclet.dem.warm)
         from peclet.dem import warm
         warming = warm.start_background()
-        # Step 6's sweep runs in a low-priority child (peclet.packing.sweep_process) beside the
+        # Step 6's sweep runs in a low-priority child (peclet.packing.page.sweep_process) beside the
         # measurement and the pour: started now when the quadrature's kernels are cached, else
         # once the element's measurement has compiled them
         sweeper = None
@@ -278,7 +281,7 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
                 t = time.perf_counter()
                 # matplotlib (0.7 s to import) only where a figure is drawn: a refused or
                 # figure-less run, and the command line's checks, never load it
-                from . import figures
+                from ..output import figures
                 rv, rf, _ = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, 60)  # (area: mesh_n)
                 figs = dict(
                     ring=figures.ring_views(rv, rf, os.path.join(out, "ring.png")),

@@ -64,7 +64,7 @@ from peclet.core.files import atomic_write, check_writable_path
 from peclet.core.geom.mesh import MAX_LATTICE, surface_mesh
 from peclet.core.validation import PecletArgumentError, check_bool, check_float
 
-from .freeze import Pack
+from ..bed.freeze import Pack
 
 __all__ = ["element_mesh", "export_mesh", "container_mesh", "bed_meshes", "write_stl",
            "write_stl_files", "write_vtu", "write_transforms_csv", "read_transforms_csv",
@@ -141,7 +141,7 @@ class _Offset:
 
 def _check_pack(pack):
     if not isinstance(pack, Pack):
-        raise PecletArgumentError("pack", "a peclet.packing.freeze.Pack", pack)
+        raise PecletArgumentError("pack", "a peclet.packing.bed.freeze.Pack", pack)
     return pack
 
 

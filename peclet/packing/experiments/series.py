@@ -60,7 +60,7 @@ def run_phases(phases, dt, step, turn, after_step=None, bar=None, start=None):
     wall's angular speed; then ``step()`` advances the simulation by ``dt``, and
     ``after_step(k, t, angle, phase)`` sees the global step count k (from 1), the time t since
     the first phase began, the angle turned (rad, the sum of omega dt) and the :class:`Phase`.
-    ``bar`` (a :class:`peclet.packing.progress.Progress`) is advanced one step at a time.
+    ``bar`` (a :class:`peclet.packing.bed.progress.Progress`) is advanced one step at a time.
 
     ``start``: None (from the beginning) or the (k, t, angle) a run stopped at (read from a
     checkpoint): phases that ended by step k are skipped, ``turn`` is called for the phase

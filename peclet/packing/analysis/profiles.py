@@ -5,7 +5,7 @@ coordination counting element-element and element-wall contacts.
 Conventions: world frame y up, the column axis along y; lengths are world lengths unless named
 ``z`` (distance from the wall, in element diameters ``d_elem``). A point is solid when some
 element's tree has phi < 0 there (phi < 0 inside) and in an envelope when some envelope has
-phi <= 0, as in :mod:`peclet.packing.analysis`. Points are tested exactly on the trees through
+phi <= 0, as in :mod:`peclet.packing.analysis.geometry`. Points are tested exactly on the trees through
 the scene query (:meth:`peclet.core.geom.SceneBuilder.eval_scene`, a BVH over the elements'
 certified balls), never on a voxel grid; every fraction is a Monte Carlo mean of uniform points
 with its binomial standard error ``sqrt(p (1 - p) / n)``.
@@ -25,8 +25,8 @@ import numpy as np
 from peclet.core.validation import (PecletArgumentError, check_array, check_bool, check_float,
                                     check_int)
 
-from .analysis import PackGeometry, fraction_se, probe_overlap
-from .freeze import Pack
+from .geometry import PackGeometry, fraction_se, probe_overlap
+from ..bed.freeze import Pack
 
 __all__ = ["ColumnSection", "BoxSection", "periodic_section", "PackSampler", "radial_profile",
            "axial_profile", "bulk", "orientation_to_axis", "coordination", "de_klerk_voidage",
@@ -141,7 +141,7 @@ def _sampler_for(pack, section):
 
 def _check_pack(pack):
     if not isinstance(pack, Pack):
-        raise PecletArgumentError("pack", "a peclet.packing.freeze.Pack", pack)
+        raise PecletArgumentError("pack", "a peclet.packing.bed.freeze.Pack", pack)
     if pack.n < 1:
         raise PecletArgumentError("pack", "a pack of at least one element", pack.n)
     return pack
@@ -314,7 +314,7 @@ def orientation_to_axis(pack, axis=(0.0, 1.0, 0.0)):
 
 def coordination(pack, walls=(), gap=0.0, periodic=False):
     """Contacts per element, counting other elements AND walls, from the DEM engine's own
-    contact detection (:func:`peclet.packing.coordination.engine_coordination`: exact for
+    contact detection (:func:`peclet.packing.analysis.coordination.engine_coordination`: exact for
     spheres, the narrow phase for composed elements).
 
     ``walls`` is a sequence of ``(builder, root)`` trees in the world frame, phi < 0 inside the
@@ -324,7 +324,7 @@ def coordination(pack, walls=(), gap=0.0, periodic=False):
 
     Returns the engine's dict (elem, wall, total, z_elem, z_total, rattlers, under_stable,
     pairs, gap, min_gap, method) and ``probe_max_depth``, the deepest surface probe of one
-    element inside another (:func:`peclet.packing.analysis.probe_overlap`: the overlap depth,
+    element inside another (:func:`peclet.packing.analysis.geometry.probe_overlap`: the overlap depth,
     which the probes measure, not a contact count).
     """
     from .coordination import engine_coordination

@@ -3,24 +3,23 @@
 Every function takes plain arrays, writes ``path`` atomically and returns it. World frame: y up;
 3-D plots show world y as the vertical axis.
 
-No global state is touched: each figure is a :class:`matplotlib.figure.Figure` drawn on its own
-:class:`~matplotlib.backends.backend_agg.FigureCanvasAgg`, never through ``pyplot``, so importing
-or using this module leaves the user's backend (``matplotlib.get_backend()``) and pyplot's
-figure list as they were (a notebook keeps its inline backend).
+No global state is touched: each figure comes from :mod:`peclet.core.figures` (a
+:class:`matplotlib.figure.Figure` on its own Agg canvas, never ``pyplot``), so importing or
+using this module leaves the user's backend (``matplotlib.get_backend()``) and pyplot's figure
+list as they were (a notebook keeps its inline backend).
 """
 from __future__ import annotations
 
 import matplotlib
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
-from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the "3d" projection)
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
+from peclet.core.figures import new_figure, save_png
 from peclet.core.files import atomic_write
 
-from .freeze import rotation_matrices, unit_quaternions
+from ..bed.freeze import rotation_matrices, unit_quaternions
 
 __all__ = ["ring_views", "kinetic_energy", "pack_by_height", "orientation_histogram",
            "voidage_sweep", "pour_animation"]
@@ -31,19 +30,6 @@ _STYLE = {"figure.dpi": 130, "font.size": 9, "axes.axisbelow": True,
 #: Published bed voidage of 25 mm Pall rings (Billet & Schultes 1999; Stichlmair et al. 1989).
 BANDS = {"metal / plastic 25 mm Pall rings": (0.90, 0.95, "#4c72b0", "#33517d"),
          "ceramic 25 mm Pall rings": (0.74, 0.78, "#c44e52", "#8c3439")}
-
-
-def _figure(figsize):
-    """A Figure on its own Agg canvas (pyplot's registry and backend are not involved)."""
-    fig = Figure(figsize=figsize)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig, path):
-    def write(tmp):
-        fig.savefig(tmp, format="png")
-    return atomic_write(path, write)
 
 
 def _height_colours(y):
@@ -66,7 +52,7 @@ def _shaded(tri, color, light=(0.4, 0.5, 0.75)):
 def ring_views(verts, faces, path, extent=0.6):
     """The element from outside and down the bore (mesh in its authoring frame, axis y)."""
     with matplotlib.rc_context(_STYLE):
-        fig = _figure((5.4, 3.0))
+        fig = new_figure((5.4, 3.0))
         for k, (elev, azim, ttl) in enumerate([(22, 35, "outside"), (78, 20, "down the bore")]):
             ax = fig.add_subplot(1, 2, k + 1, projection="3d")
             # plot (x, z, y) so that the element axis y is vertical on screen
@@ -79,7 +65,7 @@ def ring_views(verts, faces, path, extent=0.6):
             ax.set_axis_off()
             ax.view_init(elev=elev, azim=azim)
             ax.set_title(ttl, fontsize=8)
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def kinetic_energy(t, ke, phases, dt, path):
@@ -88,7 +74,7 @@ def kinetic_energy(t, ke, phases, dt, path):
     t = np.asarray(t, float)
     ke = np.asarray(ke, float)
     with matplotlib.rc_context(_STYLE):
-        fig = _figure((6.0, 2.4))
+        fig = new_figure((6.0, 2.4))
         ax = fig.add_subplot(1, 1, 1)
         floor = max(ke[ke > 0].min() if np.any(ke > 0) else 1e-12, 1e-12)
         ax.semilogy(t, np.maximum(ke, floor), color="#4c72b0", lw=1.1)
@@ -100,7 +86,7 @@ def kinetic_energy(t, ke, phases, dt, path):
         ax.set_xlabel("time")
         ax.set_ylabel("kinetic energy")
         ax.grid(alpha=0.3)
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def _draw_probes(ax, rotations, shell, positions, colours, extent, elev, **scatter_kw):
@@ -128,20 +114,20 @@ def pack_by_height(positions, rotations, shell, box, path):
     P = np.asarray(positions, float)
     Lx, Lz = box
     with matplotlib.rc_context(_STYLE):
-        fig = _figure((4.2, 4.6))
+        fig = new_figure((4.2, 4.6))
         ax = fig.add_subplot(1, 1, 1, projection="3d")
         col = _height_colours(P[:, 1])
         _draw_probes(ax, rotations, shell, P, col, (Lx, Lz, P[:, 1].max() + 0.6), elev=16,
                      s=1.2, depthshade=True, linewidths=0)
         ax.set_title("frozen pack (surface probes), coloured by height", fontsize=8)
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def orientation_histogram(cos, path, bins=8):
     """Histogram (density) of |cos theta| of the element axes from vertical, with the isotropic
     expectation (uniform density 1)."""
     with matplotlib.rc_context(_STYLE):
-        fig = _figure((3.6, 2.8))
+        fig = new_figure((3.6, 2.8))
         ax = fig.add_subplot(1, 1, 1)
         ax.hist(np.asarray(cos, float), bins=np.linspace(0, 1, bins + 1), density=True,
                 color="#8ea9c4", edgecolor="w")
@@ -150,18 +136,18 @@ def orientation_histogram(cos, path, bins=8):
         ax.set_ylabel("density")
         ax.legend(fontsize=8, frameon=False)
         ax.grid(alpha=0.3)
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def voidage_sweep(rows, eps, t_over_d, path):
     """Bed voidage 1 - f_env s(t) against wall thickness t/D (``rows`` from
-    :func:`~peclet.packing.analysis.wall_sweep`, error bars eps_err), the measured pack as a
+    :func:`~peclet.packing.analysis.geometry.wall_sweep`, error bars eps_err), the measured pack as a
     point, and the published bands."""
     a = np.array([r["t_over_d"] for r in rows])
     e = np.array([r["eps"] for r in rows])
     de = np.array([r["eps_err"] for r in rows])
     with matplotlib.rc_context(_STYLE):
-        fig = _figure((5.0, 3.2))
+        fig = new_figure((5.0, 3.2))
         ax = fig.add_subplot(1, 1, 1)
         for lbl, (lo, hi, c, tc) in BANDS.items():
             ax.axhspan(lo, hi, color=c, alpha=0.15)
@@ -175,7 +161,7 @@ def voidage_sweep(rows, eps, t_over_d, path):
         ax.legend(fontsize=7, frameon=False, loc="upper center", bbox_to_anchor=(0.5, -0.2),
                   ncol=2)
         ax.grid(alpha=0.3)
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def pour_animation(frames, times, shell, box, path, n_frames=60, fps=14, probes=90):
@@ -193,7 +179,7 @@ def pour_animation(frames, times, shell, box, path, n_frames=60, fps=14, probes=
     col = _height_colours(P0[:, 1])
     ymax = max(float(np.asarray(f[0])[:, 1].max()) for f in frames) + 0.8
     with matplotlib.rc_context(_STYLE):
-        fig = _figure((3.4, 4.0))
+        fig = new_figure((3.4, 4.0))
         ax = fig.add_subplot(111, projection="3d")
 
         def draw(k):

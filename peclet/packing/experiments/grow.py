@@ -35,11 +35,11 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from peclet.core.validation import PecletArgumentError, check_float, check_int
+from peclet.core.spec import Float, Int, Spec, Text, field
 
 __all__ = ["GrowSpec", "grow", "pair_correlation", "periodic_coordination", "FINAL_OVERLAP",
            "write_outputs", "table", "OUTPUTS"]
@@ -52,44 +52,28 @@ FINAL_OVERLAP = 1e-4
 
 
 @dataclass(frozen=True)
-class GrowSpec:
-    """A growth run (see the module notes)."""
+class GrowSpec(Spec):
+    """A growth run (see the module notes); :meth:`checked` (from :class:`~peclet.core.spec.
+    Spec`) checks every field as declared here (PecletArgumentError naming ``names[field]``)."""
 
-    element: str = "sphere"
-    count: int = 500
-    phi_start: float = 0.15
-    rate: float = 0.5
-    temperature: float = 1.0
-    tau: float = 0.05
-    e_n: float = 0.5
-    mu: float = 0.0
-    dt: float = 2e-3
-    overlap_hi: float = 2e-3
-    overlap_lo: float = 5e-4
-    gamma_min: float = 1e-4
-    check_every: int = 10
-    max_steps: int = 200_000
-    gap: float = 1e-3
-    seed: int = 1
+    check_first = ("element", "overlap_lo")
 
-    def checked(self, names=None):
-        nm = lambda f: (names or {}).get(f, f)  # noqa: E731
-        f = lambda k, lo, hi, lo_open=True: check_float(nm(k), getattr(self, k), lo, hi,  # noqa
-                                                        lo_open)
-        if not isinstance(self.element, str) or not self.element:
-            raise PecletArgumentError(nm("element"), "'sphere' or a library element name",
-                                      self.element)
-        lo = f("overlap_lo", 0.0, 0.1)
-        return replace(self, count=check_int(nm("count"), self.count, 2, 100_000),
-                       phi_start=f("phi_start", 0.0, 0.4), rate=f("rate", 0.0, 10.0),
-                       temperature=f("temperature", 0.0, 1e3), tau=f("tau", 0.0, 1e3),
-                       e_n=f("e_n", 0.0, 1.0, False), mu=f("mu", 0.0, 10.0, False),
-                       dt=f("dt", 0.0, 0.05), overlap_hi=f("overlap_hi", lo, 0.1),
-                       overlap_lo=lo, gamma_min=f("gamma_min", 0.0, self.rate),
-                       check_every=check_int(nm("check_every"), self.check_every, 1, 10_000),
-                       max_steps=check_int(nm("max_steps"), self.max_steps, 1, 10 ** 8),
-                       gap=f("gap", 0.0, 0.1), seed=check_int(nm("seed"), self.seed, 0,
-                                                              2 ** 63 - 1))
+    element: str = field("sphere", Text("'sphere' or a library element name"))
+    count: int = field(500, Int(2, 100_000))
+    phi_start: float = field(0.15, Float(0.0, 0.4, lo_open=True))
+    rate: float = field(0.5, Float(0.0, 10.0, lo_open=True))
+    temperature: float = field(1.0, Float(0.0, 1e3, lo_open=True))
+    tau: float = field(0.05, Float(0.0, 1e3, lo_open=True))
+    e_n: float = field(0.5, Float(0.0, 1.0))
+    mu: float = field(0.0, Float(0.0, 10.0))
+    dt: float = field(2e-3, Float(0.0, 0.05, lo_open=True))
+    overlap_hi: float = field(2e-3, Float("overlap_lo", 0.1, lo_open=True))
+    overlap_lo: float = field(5e-4, Float(0.0, 0.1, lo_open=True))
+    gamma_min: float = field(1e-4, Float(0.0, "rate", lo_open=True))
+    check_every: int = field(10, Int(1, 10_000))
+    max_steps: int = field(200_000, Int(1, 10 ** 8))
+    gap: float = field(1e-3, Float(0.0, 0.1, lo_open=True))
+    seed: int = field(1, Int(0, 2 ** 63 - 1))
 
 
 def _envelope(model):
@@ -179,13 +163,13 @@ def grow(spec, progress=True, threads=None):
     first peak, the phi(t) history, and ``sim`` (the quenched Simulation) and ``model``."""
     from peclet.dem import Simulation
 
-    from .progress import Progress
+    from ..bed.progress import Progress
 
     if threads is not None:
-        from .pipeline_checks import set_threads
+        from ..bed.threads import set_threads
         set_threads(threads)
     spec = spec.checked()
-    from .api import resolve_element, element_model
+    from ..bed.api import resolve_element, element_model
 
     model = element_model(resolve_element(spec.element))
     d = model.d
@@ -299,14 +283,10 @@ def write_outputs(res, out, previous=(), figures=True):
 
 
 def _figure(path, res):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from peclet.core.files import atomic_write
+    from peclet.core.figures import save_png, subplots
 
     h = res["history"]
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.4))
+    fig, (a1, a2) = subplots(1, 2, figsize=(9, 3.4))
     a1.plot([x["t"] for x in h], [x["phi"] for x in h], "-", color="C0")
     a1.set_xlabel("time")
     a1.set_ylabel("packing fraction phi")
@@ -317,8 +297,7 @@ def _figure(path, res):
     a2.set_ylabel("g(r)")
     a2.set_title(f"first peak {res['g_peak']:.1f} at r = {res['g_peak_r']:.3f} D", fontsize=9)
     fig.tight_layout()
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
+    save_png(fig, path, dpi=110)
 
 
 def table(res):

@@ -36,25 +36,37 @@ Measurements (read the state only: a run's bits do not depend on them).
 Outputs: ``results.json``, ``lacey.png`` (the mixing index against revolutions),
 ``snapshot.png`` (a vertical slice through the axis at the start and the end, grains coloured
 by species) and the ParaView series ``stir.pvd`` + ``frames/``.
+
+Checkpoints and resume, as the drum's (:mod:`peclet.packing.bed.checkpoint`, the format pack
+runs use too): with ``checkpoint_every`` K, :func:`run_stir` keeps ``checkpoint/`` in the
+output directory (after the fill, every K steps, at the end of the settle and with
+``max_steps``), each step's ``sim.npz`` (the bitwise :meth:`Simulation.save`), ``state.json``
+(step, clock, angle, samples, the settled bed's top) and ``arrays.npz`` (the species, the
+frames kept so far), written whole then renamed; :func:`resume_stir` finishes the run bit for
+bit as the uninterrupted run would, and refuses stated parameters that differ from the run's.
 """
 from __future__ import annotations
 
+import json
 import math
 import os
+import sys
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from peclet.core import geom
-from peclet.core.files import atomic_write, write_json
+from peclet.core.files import write_json
 from peclet.core.geom.transforms import quats_to_matrices
-from peclet.core.validation import PecletArgumentError, check_float, check_int
+from peclet.core.spec import Float, Int, Spec, field
+from peclet.core.validation import PecletArgumentError
 
+from ..bed import checkpoint as ckpt
 from .series import Phase, check_work, grains_mesh, run_phases, write_series
 
-__all__ = ["StirSpec", "StirredColumn", "lacey", "run_stir", "OUTPUTS", "OUTPUT_DIRS",
-           "PAGE_COUNT"]
+__all__ = ["StirSpec", "StirredColumn", "lacey", "run_stir", "resume_stir", "checkpoint_dir",
+           "read_checkpoint", "same_spec", "OUTPUTS", "OUTPUT_DIRS", "PAGE_COUNT"]
 
 G = 9.81
 #: The page's grain count at its grain radius 0.4.
@@ -74,46 +86,34 @@ ANNULI, SLABS = 5, 8
 #: Samples per revolution.
 SAMPLES_PER_REV = 20
 
-OUTPUTS = ("results.json", "lacey.png", "snapshot.png", "stir.pvd", "frames")
-OUTPUT_DIRS = ("frames",)
+OUTPUTS = ("results.json", "lacey.png", "snapshot.png", "stir.pvd", "frames", "checkpoint")
+OUTPUT_DIRS = ("frames", "checkpoint")
+#: The checkpoint directory inside a run's output directory and its kind.
+CHECKPOINT = ckpt.CHECKPOINT
+_KIND = "peclet stir checkpoint"
+_WHAT = "a stir run's output directory or its checkpoint/ (written by peclet stir)"
 
 
 @dataclass(frozen=True)
-class StirSpec:
+class StirSpec(Spec):
     """A stirred-column run (see the module notes). ``count`` None: the page's fill height
-    (22,121 grains at ``grain_radius`` 0.4)."""
+    (22,121 grains at ``grain_radius`` 0.4). :meth:`checked` (from :class:`~peclet.core.spec.
+    Spec`) checks every field as declared here (PecletArgumentError naming ``names[field]``)
+    and resolves ``count``."""
 
-    radius: float = 20.0
-    height: float = 24.0
-    grain_radius: float = PAGE_RADIUS
-    count: int | None = None
-    e: float = 0.2
-    mu: float = 0.5
-    dt: float = 2e-3
-    omega: float = 1.5
-    revolutions: float = 5.0
-    settle: float = 2.0
-    seed: int = 1
-    frames: int = 20
-
-    def checked(self, names=None):
-        """The spec with every field checked (PecletArgumentError naming ``names[field]``) and
-        ``count`` resolved."""
-        nm = lambda f: (names or {}).get(f, f)  # noqa: E731
-        f = lambda k, lo, hi, lo_open=True: check_float(nm(k), getattr(self, k), lo, hi,  # noqa
-                                                        lo_open)
-        R = f("radius", TIP_RADIUS + 1.0, 1e3, False)
-        H = f("height", 2.0 * (IMPELLER_Y + 2.0), 1e3, False)
-        r = f("grain_radius", 0.05, 2.0, False)
-        count = (int(round(PAGE_COUNT * (PAGE_RADIUS / r) ** 3)) if self.count is None
-                 else check_int(nm("count"), self.count, 1, 500_000))
-        return replace(self, radius=R, height=H, grain_radius=r, count=count,
-                       e=f("e", 0.0, 1.0, False), mu=f("mu", 0.0, 10.0, False),
-                       dt=f("dt", 0.0, 0.02), omega=f("omega", 0.0, 100.0),
-                       revolutions=f("revolutions", 0.0, 100.0),
-                       settle=f("settle", 0.0, 100.0, False),
-                       seed=check_int(nm("seed"), self.seed, 0, 2 ** 63 - 1),
-                       frames=check_int(nm("frames"), self.frames, 0, 10_000))
+    radius: float = field(20.0, Float(TIP_RADIUS + 1.0, 1e3))
+    height: float = field(24.0, Float(2.0 * (IMPELLER_Y + 2.0), 1e3))
+    grain_radius: float = field(PAGE_RADIUS, Float(0.05, 2.0))
+    count: int | None = field(None, Int(1, 500_000, if_none=lambda c: int(round(
+        PAGE_COUNT * (PAGE_RADIUS / c.value("grain_radius")) ** 3))))
+    e: float = field(0.2, Float(0.0, 1.0))
+    mu: float = field(0.5, Float(0.0, 10.0))
+    dt: float = field(2e-3, Float(0.0, 0.02, lo_open=True))
+    omega: float = field(1.5, Float(0.0, 100.0, lo_open=True))
+    revolutions: float = field(5.0, Float(0.0, 100.0, lo_open=True))
+    settle: float = field(2.0, Float(0.0, 100.0))
+    seed: int = field(1, Int(0, 2 ** 63 - 1))
+    frames: int = field(20, Int(0, 10_000))
 
 
 def _balanced_union(b, parts):
@@ -179,7 +179,7 @@ class StirredColumn:
 
     def check_room(self, name="count", omega_name="omega"):
         """Refuse (before any work) a count the start lattice cannot hold and an impeller so
-        slow its run cannot finish (:func:`~peclet.packing.series.check_work`)."""
+        slow its run cannot finish (:func:`~peclet.packing.experiments.series.check_work`)."""
         check_work(self.schedule(), self.spec.count or PAGE_COUNT, omega_name,
                    self.spec.omega)
         if _lattice(self.spec, self.builder, self.impeller, np.random.default_rng(0)) is None:
@@ -290,49 +290,158 @@ def lacey(X, species, radius, top, annuli=ANNULI, slabs=SLABS):
 
 
 # ---------------------------------------------------------------------------- the run
-def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous=()):
+def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous=(),
+             checkpoint_every=None, max_steps=None, keep_checkpoint=False):
     """Run a stirred column (``spec`` a :class:`StirSpec`, checked here); returns the results
-    dict and with ``out`` writes the outputs there (see the module notes)."""
-    from .progress import Progress, ms_per_step
+    dict and with ``out`` writes the outputs there (see the module notes).
 
+    ``checkpoint_every`` (steps, needs ``out``): keep ``out/checkpoint/`` (see the module
+    notes); :func:`resume_stir` finishes an interrupted run bit for bit. The earlier run's
+    outputs ``previous`` are removed when such a run starts and the checkpoint when it ends
+    (unless ``keep_checkpoint``). ``max_steps``: stop after this many steps in all (needs
+    ``checkpoint_every``) and return ``{"complete": False, "steps_done": k, "checkpoint":
+    path}``."""
     if threads is not None:
-        from .pipeline_checks import set_threads
+        from ..bed.threads import set_threads
         set_threads(threads)
     spec = spec.checked()
+    every, max_steps = ckpt.check_every(out, checkpoint_every, max_steps)
     col = StirredColumn(spec)           # build() refuses a count the lattice cannot hold
+    t0 = time.perf_counter()
+    cdir = None
+    if every is not None:
+        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
+        if os.path.lexists(cdir) and CHECKPOINT not in previous:
+            raise PecletArgumentError("out", "a directory without a stir checkpoint (finish "
+                                      "that run with resume_stir, or name 'checkpoint' in "
+                                      "previous to replace it)", out)
+        from peclet.core.outputs import clear_outputs
+
+        os.makedirs(out, exist_ok=True)
+        clear_outputs(out, previous)
+        previous = ()
+    col.build()
+    st = dict(k=0, t=0.0, angle=0.0, samples=[], frames=[], seconds=0.0, run=ckpt.new_run(),
+              checkpoint_every=every)
+    if cdir is not None:
+        st["seconds"] = time.perf_counter() - t0
+        _checkpoint_write(cdir, col, st)
+    return _stir(col, st, out, progress, figures, previous, every, max_steps, cdir,
+                 keep_checkpoint, t0)
+
+
+def resume_stir(path, out=None, progress=True, figures=True, threads=None, previous=(),
+                checkpoint_every=None, max_steps=None, keep_checkpoint=False, given=None,
+                names=None):
+    """Finish the stir run checkpointed in ``path`` (a run's output directory or its
+    ``checkpoint/``), bit for bit as the uninterrupted run would, and return its results
+    dict; ``out`` (default: the run's own directory) takes the outputs. ``given``: a dict of
+    :class:`StirSpec` fields the caller states: one that differs from the run's is refused,
+    the error naming ``names[field]``. ``checkpoint_every`` None: as the run had it. The other
+    arguments as :func:`run_stir`'s."""
+    from peclet.core.outputs import clear_outputs
+    from peclet.dem import Simulation
+
+    nm = lambda f: (names or {}).get(f, f)  # noqa: E731
+    cdir = checkpoint_dir(path, nm("resume"))
+    saved, st, arrays, sim_path = read_checkpoint(cdir, nm("resume"))
+    if given:
+        same_spec(saved, given, names)
+    if threads is not None:
+        from ..bed.threads import set_threads
+        set_threads(threads)
+    every = st["checkpoint_every"] if checkpoint_every is None else checkpoint_every
+    if out is None:
+        out = os.path.dirname(cdir)
+    every, max_steps = ckpt.check_every(out, every, max_steps)
+    t0 = time.perf_counter()
+    col = StirredColumn(saved)
+    col.sim = Simulation.load(sim_path)
+    col.column_wall, col.impeller_wall = int(st["column_wall"]), int(st["impeller_wall"])
+    if "species" in arrays:
+        col.species, col.bed_top = arrays["species"], float(st["bed_top"])
+    st["frames"] = [dict(t=float(t), X=X, V=V, angle=float(a)) for t, X, V, a in
+                    zip(*(arrays[f"frames_{k}"] for k in ("t", "X", "V", "angle")))] \
+        if "frames_t" in arrays else []
+    os.makedirs(out, exist_ok=True)
+    if os.path.abspath(out) != os.path.dirname(cdir):
+        # outputs elsewhere: the checkpoint goes on there (the one read is left as it is)
+        clear_outputs(out, previous)
+        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
+        if every is not None:
+            _checkpoint_write(cdir, col, st)
+    else:
+        clear_outputs(out, tuple(f for f in previous if f != CHECKPOINT))
+    return _stir(col, st, out, progress, figures, (), every, max_steps, cdir,
+                 keep_checkpoint, t0 - st["seconds"])
+
+
+class _Stop(Exception):
+    """max_steps reached (the checkpoint is written)."""
+
+
+def _stir(col, st, out, progress, figures, previous, every, max_steps, cdir, keep_checkpoint,
+          t0):
+    """Run the column from the state ``st`` (step k, clock, angle, what was observed so far)
+    to the end of its schedule, observing and checkpointing; returns the results."""
+    from ..bed.progress import Progress, ms_per_step
+
+    spec, sim = col.spec, col.sim
     sched = col.schedule()
     total = sum(ph.steps for ph in sched)
-    bar = Progress(total, desc="stir", enabled=progress)
-    t0 = time.perf_counter()
-    sim = col.build()
+    ends = set(np.cumsum([ph.steps for ph in sched]).tolist())
+    bar = Progress(total, desc="stir", enabled=progress, initial=min(st["k"], total))
     settle_steps = sched[0].steps
     per_rev = sched[1].steps / max(spec.revolutions, 1e-300)
-    every = max(1, int(round(per_rev / SAMPLES_PER_REV)))
+    every_sample = max(1, int(round(per_rev / SAMPLES_PER_REV)))
     frame_at = {settle_steps + max(1, int(round(sched[1].steps * i / max(spec.frames - 1, 1))))
                 for i in range(spec.frames)} if spec.frames else set()
-    samples, frames, first = [], [], [None]
+    samples, frames, first = st["samples"], st["frames"], [None]
+    stop_at = max_steps
 
     def observe(k, t, angle, phase):
         if k == 1:
             first[0] = time.perf_counter() - t0
         if k == settle_steps:
             col.label()
-        if phase.name == "stir" and (k - settle_steps) % every == 0 or k == settle_steps:
+        if phase.name == "stir" and (k - settle_steps) % every_sample == 0 or \
+                k == settle_steps:
             s = col.measure()
             s.update(t=t, revolutions=angle / (2.0 * math.pi))
             samples.append(s)
         if k in frame_at or k == settle_steps and spec.frames:
             frames.append(dict(t=t, X=sim.get_positions(), V=sim.get_velocities(),
                                angle=angle))
+        if every is not None and (k % every == 0 or k in ends or k == stop_at):
+            st.update(k=k, t=t, angle=angle, seconds=time.perf_counter() - t0)
+            _checkpoint_write(cdir, col, st)
+        if k == stop_at:
+            raise _Stop
 
-    if settle_steps == 0:
+    if settle_steps == 0 and st["k"] == 0:
         col.label()
-    run_phases(sched, spec.dt, col.step, col.turn, observe, bar)
+    if stop_at is not None and st["k"] >= stop_at:
+        bar.close()
+        return dict(complete=False, steps_done=st["k"], checkpoint=cdir)
+    try:
+        run_phases(sched, spec.dt, col.step, col.turn, observe, bar,
+                   start=(st["k"], st["t"], st["angle"]))
+    except _Stop:
+        bar.close()
+        return dict(complete=False, steps_done=stop_at, checkpoint=cdir)
+    except KeyboardInterrupt:
+        bar.close()
+        if cdir is not None and os.path.isfile(os.path.join(cdir, ckpt.POINTER)):
+            with open(os.path.join(cdir, ckpt.POINTER)) as fh:
+                k = json.load(fh).get("step")
+            print(f"stir: interrupted; the checkpoint at step {k} of {total} resumes it "
+                  f"(peclet stir --resume {os.path.dirname(cdir)})", file=sys.stderr)
+        raise
     bar.close()
     seconds = time.perf_counter() - t0
     tip = spec.omega * TIP_RADIUS
     res = dict(spec=asdict(spec), grains=spec.count, tip_speed=tip, steps=total,
-               settle_steps=settle_steps, sample_every=every,
+               settle_steps=settle_steps, sample_every=every_sample,
                lacey_start=samples[0]["lacey"] if samples else math.nan,
                lacey_end=samples[-1]["lacey"] if samples else math.nan,
                escaped_max=max((s["escaped"] for s in samples), default=0),
@@ -345,7 +454,56 @@ def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous
                samples=samples)
     if out is not None:
         _write(out, res, col, frames, figures, previous)
+        if cdir is not None and not keep_checkpoint:
+            ckpt.remove(cdir, own=())
     return res
+
+
+# ---------------------------------------------------------------------------- checkpoints
+def checkpoint_dir(path, name="path"):
+    """The checkpoint directory of a stir run at ``path`` (its output directory or the
+    ``checkpoint/`` in it); PecletArgumentError naming ``name`` if there is none."""
+    return ckpt.find(path, name, _WHAT)
+
+
+def _checkpoint_write(cdir, col, st):
+    state = dict(t=st["t"], angle=st["angle"], seconds=st["seconds"],
+                 checkpoint_every=st.get("checkpoint_every"), column_wall=col.column_wall,
+                 impeller_wall=col.impeller_wall, samples=st["samples"],
+                 bed_top=getattr(col, "bed_top", None))
+    arrays = {}
+    if getattr(col, "species", None) is not None:
+        arrays["species"] = col.species
+    if st["frames"]:
+        arrays.update(frames_t=np.array([f["t"] for f in st["frames"]], np.float64),
+                      frames_angle=np.array([f["angle"] for f in st["frames"]], np.float64),
+                      frames_X=np.stack([f["X"] for f in st["frames"]]),
+                      frames_V=np.stack([f["V"] for f in st["frames"]]))
+    ckpt.write_loop_step(cdir, _KIND, asdict(col.spec), st["run"], st["k"], col.sim, state,
+                         arrays)
+
+
+def read_checkpoint(cdir, name="path"):
+    """(checked spec, state dict, arrays dict, path of ``sim.npz``) of the latest step of the
+    checkpoint directory ``cdir``; anything else: PecletArgumentError naming ``name``."""
+    return ckpt.read_loop_step(cdir, _KIND, "stir", name, _WHAT,
+                               lambda d: StirSpec(**d).checked())
+
+
+def same_spec(saved, given, names=None):
+    """Refuse ``given`` (a dict of :class:`StirSpec` fields) unless the run's checked spec
+    ``saved`` has them: the error names the first differing field (``names[field]``)."""
+    nm = lambda f: (names or {}).get(f, f)  # noqa: E731
+    base = asdict(saved)
+    unknown = set(given) - set(base)
+    if unknown:
+        raise PecletArgumentError("given", "StirSpec fields", sorted(unknown))
+    new = asdict(StirSpec(**dict(base, **given)).checked(names))
+    for k in base:
+        if base[k] != new[k]:
+            raise PecletArgumentError(nm(k), f"the resumed run's {getattr(saved, k)!r} (a "
+                                      "resumed run keeps its parameters: leave the option "
+                                      "out, or start a new run)", given.get(k, new[k]))
 
 
 def _write(out, res, col, frames, figures, previous):
@@ -386,12 +544,10 @@ def _write_frames(out, col, frames):
 
 
 def _lacey_figure(path, res):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from peclet.core.figures import save_png, subplots
 
     s = res["samples"]
-    fig, ax = plt.subplots(figsize=(6, 3.2))
+    fig, ax = subplots(figsize=(6, 3.2))
     ax.plot([x["revolutions"] for x in s], [x["lacey"] for x in s], "-", color="C0")
     ax.set_xlabel("impeller revolutions")
     ax.set_ylabel("Lacey mixing index")
@@ -399,20 +555,17 @@ def _lacey_figure(path, res):
     ax.set_title(f"{res['grains']} grains, omega {res['spec']['omega']:g}: "
                  f"{res['lacey_start']:.3f} -> {res['lacey_end']:.3f}", fontsize=10)
     fig.tight_layout()
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
+    save_png(fig, path, dpi=110)
 
 
 def _snapshot_figure(path, col, frames):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from peclet.core.figures import save_png, subplots
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle
 
     spec = col.spec
     pick = [frames[0], frames[-1]] if frames else []
-    fig, axes = plt.subplots(1, max(1, len(pick)), figsize=(4.0 * max(1, len(pick)), 3.6),
+    fig, axes = subplots(1, max(1, len(pick)), figsize=(4.0 * max(1, len(pick)), 3.6),
                              squeeze=False)
     for ax, f in zip(axes[0], pick):
         X = f["X"]
@@ -431,5 +584,4 @@ def _snapshot_figure(path, col, frames):
         ax.set_title(f"t = {f['t']:.2f}, rev {f['angle'] / (2 * math.pi):.2f} (slice z = 0; "
                      "blue: lower half at the start)", fontsize=8)
     fig.tight_layout()
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
+    save_png(fig, path, dpi=110)
