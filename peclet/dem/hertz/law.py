@@ -96,30 +96,23 @@ def into_plane(hx, hy, hz, nx, ny, nz):
 
 
 @njit(cache=True)
-def _one_contact(i, rows, law, motion, dt, out):
-    # contact i of contact_forces; writes only row i
-    a, b, normal, gap, ra, rb = rows
-    estar, gstar, rstar, mstar, gamma, mu = law
+def contact_velocity(i, rows, motion):
+    """(v_n, t_x, t_y, t_z) of contact i: the normal component (positive when separating) and
+    the tangential part of the velocity of a's surface point relative to b's (or to the
+    wall's surface, ``motion.vwall[i]``), world frame. Shared by every force law."""
+    a, b, normal, _, ra, rb = rows
     vel, omega, vwall = motion
-    xi, force, fn_out = out
-    d = -gap[i]
-    if d <= 0.0:
-        for e in range(3):
-            force[i, e] = 0.0
-            xi[i, e] = 0.0
-        fn_out[i] = 0.0
-        return
     ia = a[i]
     nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
     cx, cy, cz = cross(omega[ia, 0], omega[ia, 1], omega[ia, 2], ra[i, 0], ra[i, 1],
-                        ra[i, 2])
+                       ra[i, 2])
     vx = vel[ia, 0] + cx
     vy = vel[ia, 1] + cy
     vz = vel[ia, 2] + cz
     ib = b[i]
     if ib >= 0:
         cx, cy, cz = cross(omega[ib, 0], omega[ib, 1], omega[ib, 2], rb[i, 0], rb[i, 1],
-                            rb[i, 2])
+                           rb[i, 2])
         vx -= vel[ib, 0] + cx
         vy -= vel[ib, 1] + cy
         vz -= vel[ib, 2] + cz
@@ -128,39 +121,75 @@ def _one_contact(i, rows, law, motion, dt, out):
         vy -= vwall[i, 1]
         vz -= vwall[i, 2]
     vn = vx * nx + vy * ny + vz * nz
-    tx = vx - vn * nx
-    ty = vy - vn * ny
-    tz = vz - vn * nz
+    return vn, vx - vn * nx, vy - vn * ny, vz - vn * nz
+
+
+@njit(cache=True)
+def tangential_spring(i, xi, nx, ny, nz, tx, ty, tz, dt, stiffness, damping, limit):
+    """The tangential force (fx, fy, fz) of contact i from its history ``xi[i]`` (turned into
+    the current tangent plane, length kept, then advanced by the tangential velocity (tx, ty,
+    tz) over dt): ``-stiffness xi - damping v_t``, truncated at ``limit`` (Coulomb: the force
+    onto the cone and the spring stretched to hold exactly it). Writes ``xi[i]``."""
+    hx, hy, hz = into_plane(xi[i, 0], xi[i, 1], xi[i, 2], nx, ny, nz)
+    hx += tx * dt
+    hy += ty * dt
+    hz += tz * dt
+    fx = -stiffness * hx - damping * tx
+    fy = -stiffness * hy - damping * ty
+    fz = -stiffness * hz - damping * tz
+    ft = math.sqrt(fx * fx + fy * fy + fz * fz)
+    if ft > limit:
+        s = limit / ft
+        fx *= s
+        fy *= s
+        fz *= s
+        if stiffness > 0.0:
+            hx = -fx / stiffness
+            hy = -fy / stiffness
+            hz = -fz / stiffness
+    xi[i, 0], xi[i, 1], xi[i, 2] = hx, hy, hz
+    return fx, fy, fz
+
+
+@njit(cache=True)
+def clear_row(i, out):
+    """Contact i does not touch: no force, and its history forgotten."""
+    for e in range(3):
+        out.force[i, e] = 0.0
+        out.xi[i, e] = 0.0
+    out.fn[i] = 0.0
+
+
+@njit(cache=True)
+def store_row(i, out, fn, nx, ny, nz, fx, fy, fz):
+    """Contact i's force on a: ``fn`` along the unit normal (nx, ny, nz) plus the
+    tangential (fx, fy, fz); its normal force ``fn``."""
+    out.force[i, 0] = fn * nx + fx
+    out.force[i, 1] = fn * ny + fy
+    out.force[i, 2] = fn * nz + fz
+    out.fn[i] = fn
+
+
+@njit(cache=True)
+def _one_contact(i, rows, law, motion, dt, out):
+    # contact i of contact_forces; writes only row i
+    normal, gap = rows.normal, rows.gap
+    estar, gstar, rstar, mstar, gamma, mu = law
+    d = -gap[i]
+    if d <= 0.0:
+        clear_row(i, out)
+        return
+    nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+    vn, tx, ty, tz = contact_velocity(i, rows, motion)
     sq = math.sqrt(rstar[i] * d)
     sn = 2.0 * estar[i] * sq
     st = 8.0 * gstar[i] * sq
     fn = 4.0 / 3.0 * estar[i] * sq * d - gamma[i] * math.sqrt(sn * mstar[i]) * vn
     if fn < 0.0:
         fn = 0.0
-    # history into the current tangent plane, length kept (the contact frame turned)
-    hx, hy, hz = into_plane(xi[i, 0], xi[i, 1], xi[i, 2], nx, ny, nz)
-    hx += tx * dt
-    hy += ty * dt
-    hz += tz * dt
-    ct = gamma[i] * math.sqrt(st * mstar[i])
-    fx = -st * hx - ct * tx
-    fy = -st * hy - ct * ty
-    fz = -st * hz - ct * tz
-    ft = math.sqrt(fx * fx + fy * fy + fz * fz)
-    lim = mu[i] * fn
-    if ft > lim:
-        s = lim / ft
-        fx *= s
-        fy *= s
-        fz *= s
-        hx = -fx / st
-        hy = -fy / st
-        hz = -fz / st
-    xi[i, 0], xi[i, 1], xi[i, 2] = hx, hy, hz
-    force[i, 0] = fn * nx + fx
-    force[i, 1] = fn * ny + fy
-    force[i, 2] = fn * nz + fz
-    fn_out[i] = fn
+    fx, fy, fz = tangential_spring(i, out.xi, nx, ny, nz, tx, ty, tz, dt, st,
+                                   gamma[i] * math.sqrt(st * mstar[i]), mu[i] * fn)
+    store_row(i, out, fn, nx, ny, nz, fx, fy, fz)
 
 
 @njit(cache=True)

@@ -6,14 +6,13 @@ per-contact constants :class:`LinearRows`; each row writes only its own slots, s
 the parallel loop give the same bits."""
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from peclet.dem.hertz import dispatch
-from peclet.dem.hertz.law import cross, into_plane
+from peclet.dem.hertz.law import clear_row, contact_velocity, store_row, tangential_spring
 
 
 class LinearRows(NamedTuple):
@@ -28,66 +27,20 @@ class LinearRows(NamedTuple):
 @njit(cache=True)
 def _one_contact(i, rows, law, motion, dt, out):
     # contact i of linear_forces; writes only row i
-    a, b, normal, gap, ra, rb = rows
+    normal, gap = rows.normal, rows.gap
     kn, kt, cn, mu = law
-    vel, omega, vwall = motion
-    xi, force, fn_out = out
     d = -gap[i]
     if d <= 0.0:
-        for e in range(3):
-            force[i, e] = 0.0
-            xi[i, e] = 0.0
-        fn_out[i] = 0.0
+        clear_row(i, out)
         return
-    ia = a[i]
     nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-    cx, cy, cz = cross(omega[ia, 0], omega[ia, 1], omega[ia, 2], ra[i, 0], ra[i, 1],
-                       ra[i, 2])
-    vx = vel[ia, 0] + cx
-    vy = vel[ia, 1] + cy
-    vz = vel[ia, 2] + cz
-    ib = b[i]
-    if ib >= 0:
-        cx, cy, cz = cross(omega[ib, 0], omega[ib, 1], omega[ib, 2], rb[i, 0], rb[i, 1],
-                           rb[i, 2])
-        vx -= vel[ib, 0] + cx
-        vy -= vel[ib, 1] + cy
-        vz -= vel[ib, 2] + cz
-    else:
-        vx -= vwall[i, 0]
-        vy -= vwall[i, 1]
-        vz -= vwall[i, 2]
-    vn = vx * nx + vy * ny + vz * nz
-    tx = vx - vn * nx
-    ty = vy - vn * ny
-    tz = vz - vn * nz
+    vn, tx, ty, tz = contact_velocity(i, rows, motion)
     # no clamp: the dashpot may pull at the end of a contact, which is what makes the
-    # restitution exactly e (the module notes of peclet.dem.linear)
+    # restitution exactly e (the module notes of peclet.dem.linear); no tangential dashpot
     fn = kn[i] * d - cn[i] * vn
-    hx, hy, hz = into_plane(xi[i, 0], xi[i, 1], xi[i, 2], nx, ny, nz)
-    hx += tx * dt
-    hy += ty * dt
-    hz += tz * dt
-    fx = -kt[i] * hx
-    fy = -kt[i] * hy
-    fz = -kt[i] * hz
-    ft = math.sqrt(fx * fx + fy * fy + fz * fz)
-    lim = mu[i] * max(fn, 0.0)
-    if ft > lim:
-        # Coulomb: the force onto the cone, the spring stretched to hold exactly it
-        s = lim / ft
-        fx *= s
-        fy *= s
-        fz *= s
-        if kt[i] > 0.0:
-            hx = -fx / kt[i]
-            hy = -fy / kt[i]
-            hz = -fz / kt[i]
-    xi[i, 0], xi[i, 1], xi[i, 2] = hx, hy, hz
-    force[i, 0] = fn * nx + fx
-    force[i, 1] = fn * ny + fy
-    force[i, 2] = fn * nz + fz
-    fn_out[i] = fn
+    fx, fy, fz = tangential_spring(i, out.xi, nx, ny, nz, tx, ty, tz, dt, kt[i], 0.0,
+                                   mu[i] * max(fn, 0.0))
+    store_row(i, out, fn, nx, ny, nz, fx, fy, fz)
 
 
 @njit(cache=True)
