@@ -167,6 +167,10 @@ def run(args):
     if cont is not None and args.axis != "y":
         raise PecletArgumentError("--axis", "y for a column section (the column's axis; its "
                                   "wall closes x and z)", args.axis)
+    from peclet.flow.permeability import check_lattice_memory
+    flag = "--resolutions" if args.resolutions is not None else "--resolution"
+    for r in res:               # every lattice of a grid study fits, before the first runs
+        check_lattice_memory(pack, r, window, args.y_mode, cont, flag, f"D/{r:g}")
     out, previous = check_output_dir(args.out, OUTPUTS, args.overwrite, "--out")
     if threads is not None:
         import numba

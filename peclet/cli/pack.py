@@ -269,7 +269,9 @@ def run(args):
     if isinstance(args.element, str) and args.element.endswith(".npz"):
         _missing_file("--element", args.element, "a flat-encoding .npz (node_ints, "
                       "node_reals, root)")
-    for flag, value, parse in (("--element", args.element, api.resolve_element),
+    # the element's walls are checked against the probe lattice here, before --out is made
+    for flag, value, parse in (("--element", args.element,
+                                lambda v: api.check_walls(api.resolve_element(v))),
                                ("--container", args.container, api.parse_container)):
         try:
             parse(value)

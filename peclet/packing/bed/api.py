@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from peclet.core import geom
+from peclet.core.machine import check_memory, physical_memory
 from peclet.core.validation import PecletArgumentError, check_bool, check_int
 
 from . import checkpoint as ckpt
@@ -38,7 +39,7 @@ from .progress import Progress, compile_note, ms_per_step
 from .protocols import G, Body, RunState, drive, insert_bodies, new_simulation, parse_protocol
 
 __all__ = ["pack", "resume", "PackResult", "ElementModel", "element_model", "ITERATIONS",
-           "COUNT_MAX", "BYTES_PER_ELEMENT", "count_cap"]
+           "COUNT_MAX", "BYTES_PER_ELEMENT", "count_cap", "check_walls", "MAX_SHELL_RESOLUTION"]
 
 #: The most elements one pack takes (the work: at ~0.1 ms per element-step on 2 cores, 10^5
 #: elements are ~10 s per step), unless memory caps it lower (:func:`count_cap`).
@@ -50,18 +51,10 @@ COUNT_MAX = 100_000
 BYTES_PER_ELEMENT = 16 * 1024
 
 
-def _physical_memory():
-    """Bytes of physical memory (None where the OS does not say)."""
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
 def count_cap():
     """(the largest count a pack takes, why): :data:`COUNT_MAX`, or what a quarter of this
     machine's physical memory holds at :data:`BYTES_PER_ELEMENT` if that is fewer."""
-    mem = _physical_memory()
+    mem = physical_memory()
     why = (f"the cap: {COUNT_MAX} elements for the work (about 0.1 ms per element-step), "
            f"and memory at {BYTES_PER_ELEMENT // 1024} KiB per element in the engine")
     if mem is None:
@@ -69,6 +62,13 @@ def count_cap():
     by_mem = int(mem // 4 // BYTES_PER_ELEMENT)
     why += f" (a quarter of {mem / 2 ** 30:.1f} GiB holds {by_mem})"
     return min(COUNT_MAX, by_mem), why
+
+#: The largest marching-cubes lattice (nodes a side) the thin-wall rule of
+#: :func:`element_model` builds (scene_particle's own bound).
+MAX_SHELL_RESOLUTION = 1024
+#: Peak bytes per node of the probe lattice (the field on the lattice, marching cubes' work;
+#: measured: 21 B a node from 128^3 to 384^3 nodes).
+SHELL_BYTES_PER_NODE = 24
 
 #: Solver sweeps (position, velocity), the page's.
 ITERATIONS = (10, 8)
@@ -257,6 +257,33 @@ def element_model(el: Element, build=None):
     return model
 
 
+def check_walls(el, resolution=None):
+    """The probe lattice (nodes a side) the thin-wall rule of :func:`element_model` builds for
+    ``el`` (at least ``resolution``, default the page's): 2 cells across its thinnest wall
+    ``el.min_feature`` (D). Raises PecletArgumentError naming the element's parameters when
+    that needs more than :data:`MAX_SHELL_RESOLUTION` (capping would build the largest lattice
+    and still miss the wall's far face) or more memory than this machine gives a job. Cheap:
+    nothing is built."""
+    res = int(BUILD["shell_resolution"] if resolution is None else resolution)
+    t = float(el.min_feature)
+    if not (math.isfinite(t) and t > 0):
+        return res
+    extent = float(np.max(np.asarray(el.bounds[1]) - np.asarray(el.bounds[0])))
+    need = math.ceil(2.0 * extent / t)
+    if need > MAX_SHELL_RESOLUTION:
+        raise PecletArgumentError(
+            f"{el.name} parameters", "walls at least "
+            f"{2.0 * extent / MAX_SHELL_RESOLUTION:.3g} D thick (2 cells of the probe "
+            f"lattice, at most {MAX_SHELL_RESOLUTION} a side over the element's "
+            f"{extent:.3g} D extent)", f"thinnest wall {t:.3g} D",
+            f"it needs a {need}^3 lattice")
+    res = max(res, need)
+    check_memory(f"{el.name} parameters", f"thinnest wall {t:.3g} D",
+                 res ** 3 * SHELL_BYTES_PER_NODE,
+                 f"the probe lattice of {res}^3 nodes at {SHELL_BYTES_PER_NODE} B a node")
+    return res
+
+
 def _build_following_walls(scene_particle, el, kw, given):
     """``scene_particle.build`` with the thin-wall rule of :func:`element_model`."""
     from peclet.core.geom.shell import count_for_spacing
@@ -268,9 +295,7 @@ def _build_following_walls(scene_particle, el, kw, given):
     # ring's measurement is done once (7.2 s -> 5.7 s for the 0.024 D Pall ring, the same bits)
     kw = dict(kw, cache={})
     if "shell_resolution" not in given:
-        extent = float(np.max(np.asarray(el.bounds[1]) - np.asarray(el.bounds[0])))
-        kw["shell_resolution"] = int(min(1024, max(kw["shell_resolution"],
-                                                   math.ceil(2.0 * extent / t))))
+        kw["shell_resolution"] = check_walls(el, kw["shell_resolution"])
     sp = scene_particle.build(el.builder, el.root, bounds=el.bounds, **kw)
     if "target_shell_points" in given or sp.spacing["even_spacing"] <= t:
         return sp
