@@ -283,8 +283,10 @@ def test_upstream_dem_certification(tmp_path):
     done, report = certify(UPSTREAM_DEM, tmp_path, {UPSTREAM_VENV: venv}, ["-k", "test_dem_"])
     got = check_dem_report(done, report, os.path.join(UPSTREAM_DEM, "xfails.toml"))
     assert got["determinism at one thread (DEM backend)"] == "passed"
-    for name in ("determinism across threads (DEM backend)", "buffer growth (DEM backend)",
-                 "slide to roll", "free rigid body"):
+    # the wheel's thread race shows on most runs, not all: at smoke size its two-thread run
+    # matched the one-thread bits in 1 of 6 runs here, so that certificate may pass
+    assert got["determinism across threads (DEM backend)"] in ("waived", "passed"), got
+    for name in ("buffer growth (DEM backend)", "slide to roll", "free rigid body"):
         assert got[name] == "waived", (name, got)
 
 
