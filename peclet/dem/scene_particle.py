@@ -17,6 +17,7 @@ import numpy as np
 
 from peclet.core.geom import quadrature
 from peclet.core.geom.shell import shell_probes
+from peclet.core.validation import PecletArgumentError
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,20 @@ def _as_bounds(bounds):
     return quadrature.check_box(lo, hi)
 
 
+def check_bounded(builder, root, name="root"):
+    """Refuse (PecletArgumentError naming ``name``) a tree whose bounding ball
+    (``builder.node_bound``) has an infinite or NaN radius: an unbounded solid such as a
+    ``half_space``, which no particle can be. Returns the ball's (centre, radius)."""
+    c, r, _ = builder.node_bound(root)
+    if not np.isfinite(r):
+        raise PecletArgumentError(
+            name, "the root of a bounded solid (a particle has a finite extent)", root,
+            f"its bounding ball's radius is {r}: a half_space leaf is unbounded; a union with "
+            "one is too, and an intersection or difference takes its left operand's ball, so "
+            "put the bounded operand on the left")
+    return c, r
+
+
 def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points=1200,
           density=1.0, seed=0, tol=1e-8, cache=None):
     """Measure ``root``, reframe it to its principal frame and place shell probes.
@@ -81,7 +96,14 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
     cache : optional dict shared between builds of the same tree and bounds (the quadrature's,
         :func:`quadrature.body_properties`): a second build, e.g. with more shell probes,
         measures nothing again. The results are bitwise the same with or without it.
+
+    A particle is a bounded solid: a tree whose bounding ball is infinite (a ``half_space``
+    leaf in a union, or on the left of an intersection or difference, whose ball it takes)
+    is refused (PecletArgumentError naming ``root``) before any work. Otherwise the
+    quadrature would measure only the part inside ``bounds`` and the DEM would get an
+    infinite bounding radius.
     """
+    check_bounded(builder, root)
     lo, hi = _as_bounds(bounds)
     t = target_shell_points
     if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 4:

@@ -29,6 +29,7 @@ from .geometry import PackGeometry, fraction_se, probe_overlap
 from ..bed.freeze import Pack
 
 __all__ = ["ColumnSection", "BoxSection", "periodic_section", "PackSampler", "radial_profile",
+           "check_column_holds_bed",
            "axial_profile", "bulk", "orientation_to_axis", "coordination", "de_klerk_voidage",
            "benyahia_oneill_voidage"]
 
@@ -162,6 +163,35 @@ def _fractions(flags, groups, n_per):
 
 
 # ---------------------------------------------------------------------- profiles
+def check_column_holds_bed(pack, section, y_lo, y_hi):
+    """Refuse a column (a :class:`ColumnSection`: radius R about ``center_xz``, world) that
+    does not hold the bed between heights ``y_lo`` and ``y_hi`` (world), reading the element
+    centres and the bounding radius r_b only. PecletArgumentError naming ``y_lo`` when no
+    element's bounding sphere reaches the span, and ``center_xz`` when an element there lies
+    wholly outside the column (its centre farther than R + r_b from the axis): no wall of
+    that column bounds it, so the column is not the bed's."""
+    P, rb = pack.positions, float(pack.bounding_radius)
+    span = (P[:, 1] + rb > y_lo) & (P[:, 1] - rb < y_hi)
+    if not span.any():
+        raise PecletArgumentError(
+            "y_lo", "the bottom of a height span that meets the bed", y_lo,
+            f"y in [{y_lo:.4g}, {y_hi:.4g}]; element centres from y = {P[:, 1].min():.4g} to "
+            f"{P[:, 1].max():.4g}, bounding radius {rb:.4g}")
+    cx, cz = section.center_xz
+    rho = np.hypot(P[:, 0] - cx, P[:, 2] - cz)
+    out = span & (rho > (section.radius + rb) * (1.0 + 1e-12))
+    if out.any():
+        k = int(np.flatnonzero(out)[np.argmax(rho[out])])
+        raise PecletArgumentError(
+            "center_xz", f"the axis (x, z) of a column of radius {section.radius:.4g} that "
+            "holds the bed", section.center_xz,
+            f"{int(out.sum())} of {int(span.sum())} elements in the span lie wholly outside "
+            f"it, e.g. element {k} at (x, z) = ({P[k, 0]:.4g}, {P[k, 2]:.4g}), "
+            f"{rho[k]:.4g} from the axis > R + r_b = {section.radius + rb:.4g}"
+            + ("; the centre is outside the bed: every shell would read eps = 1"
+               if out.sum() == span.sum() else ""))
+
+
 def radial_profile(pack, column_radius, center_xz, y_lo, y_hi, d_elem=1.0, shell_width=0.02,
                    samples_per_shell=4000, seed=0):
     """Voidage against the distance from a cylindrical wall, eps(z), z = (R - r) / d_elem.
@@ -174,6 +204,12 @@ def radial_profile(pack, column_radius, center_xz, y_lo, y_hi, d_elem=1.0, shell
 
     Returns a dict: ``z`` (shell centres, in d_elem), ``z_edges`` (n + 1), ``eps`` and
     ``eps_se`` (binomial standard error per shell), ``n_per_shell``, ``y_span``, ``d_elem``.
+
+    The column must hold the bed (:func:`check_column_holds_bed`): a height span no element
+    reaches is refused (naming ``y_lo``), and so is a column of radius R about ``center_xz``
+    that leaves an element of the span wholly outside it (naming ``center_xz``): a centre
+    outside the bed would otherwise give eps = 1 in every shell, a misplaced one a profile of
+    no wall.
     """
     pack = _check_pack(pack)
     sec = ColumnSection(column_radius, center_xz)
@@ -181,6 +217,7 @@ def radial_profile(pack, column_radius, center_xz, y_lo, y_hi, d_elem=1.0, shell
     d = check_float("d_elem", d_elem, 0.0, lo_open=True)
     w = check_float("shell_width", shell_width, 0.0, 0.02, lo_open=True) * d
     n = check_int("samples_per_shell", samples_per_shell, 1, 10 ** 7)
+    check_column_holds_bed(pack, sec, lo, hi)
     R = sec.radius
     nshell = max(1, int(math.ceil(R / w - 1e-9)))
     dist = np.minimum(np.arange(nshell + 1) * w, R)  # distance from the wall at shell edges

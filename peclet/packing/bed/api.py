@@ -336,8 +336,8 @@ class PackResult:
     @property
     def landed(self):
         """The landing rule (``protocols``): no body moved faster than LAND_SPEED D/time when
-        the quench started (None for a run stopped before it; details in
-        ``state.landing``)."""
+        the quench started and none was in the air when the run ended (``protocols.in_air``;
+        None for a run stopped before the quench; details in ``state.landing``)."""
         rec = self.state.landing if self.state is not None else None
         return None if rec is None else bool(rec["landed"])
 
@@ -519,10 +519,17 @@ def _run(model, cont, proto, mat, wmat, spec, seed, progress, max_steps, cdir, e
 
 def landing_message(rec):
     """One line saying how a run broke the landing rule (``rec``: ``RunState.landing``)."""
+    fall, before = rec.get("fall_time"), rec.get("landing_time")
     if rec["moving"]:
         why = (f"{rec['moving']} of {rec['bodies']} elements moved faster than "
                f"{rec['threshold']:g} D/time (up to {rec['max_speed']:.3g}) when the quench "
                f"started at step {rec['step']}")
+    elif not (fall is not None and before is not None and fall > before) \
+            and rec.get("in_air"):
+        why = (f"{rec['in_air']} of {rec['bodies']} elements were still in the air when the "
+               f"run ended at step {rec['air_step']} (no chain of bounding spheres within "
+               f"{rec['air_gap']:g} D of one another reaches the floor; the highest "
+               f"{rec['air_top']:.3g} D above it)")
     else:
         why = (f"the start cloud's top needs {rec['fall_time']:.3f} time units of free fall, "
                f"more than the {rec['landing_time']:.3f} before the quench (step "

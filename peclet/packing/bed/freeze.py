@@ -25,7 +25,8 @@ import numpy as np
 from peclet.core import geom
 from peclet.core.files import atomic_write, check_writable_path
 from peclet.core.geom.transforms import quats_to_matrices
-from peclet.core.validation import PecletArgumentError, check_array, check_float, check_int
+from peclet.core.validation import (PecletArgumentError, check_array, check_bool, check_float,
+                                    check_int)
 
 # atomic_write is re-exported for code that imported it from here before it moved to core
 __all__ = ["Pack", "save_pack", "load_pack", "pack_to_simulation", "atomic_write"]
@@ -280,12 +281,24 @@ def pack_to_simulation(path_or_pack, material=(0.15, 0.0, 0.5), iterations=(10, 
                        gravity=(0.0, -9.81, 0.0), dt=2e-3, floor=True, y_top=None):
     """A ``peclet.dem.Simulation`` holding the frozen pack at rest, as the page set it up:
     periodic in x and z over [0, L), an analytic box floor below y = 0, the given material
-    (e_n, e_t, mu), solver iterations, gravity and time step; the domain's top ``y_top``
-    defaults to the page's 60 D or, for a taller pack, 2 D above its highest centre
-    (:func:`peclet.packing.bed.pour.y_top_for`). Returns (sim, shape_id)."""
+    (e_n, e_t, mu), solver iterations, gravity (gx, gy, gz) (length/time^2) and time step; the
+    domain's top ``y_top`` defaults to the page's 60 D or, for a taller pack, 2 D above its
+    highest centre (:func:`peclet.packing.bed.pour.y_top_for`). With the ``floor`` the pack
+    rests on it, so gravity must point towards it (gy < 0; a tilt in x or z is taken): gravity
+    pointing up or along the floor would carry the pack off it, and is refused (naming
+    ``gravity``). Returns (sim, shape_id)."""
     from peclet.dem import Simulation
 
     from .pour import y_top_for
+
+    gravity = check_array("gravity", gravity, (3,))
+    floor = check_bool("floor", floor)
+    if floor and not gravity[1] < 0.0:
+        raise PecletArgumentError(
+            "gravity", "a vector pointing towards the floor the pack rests on (gy < 0, "
+            "length/time^2) when floor=True", tuple(float(g) for g in gravity),
+            "gy >= 0 lifts the pack off the floor or lets it drift along it; pass floor=False "
+            "for a pack without a floor")
 
     pack = path_or_pack if isinstance(path_or_pack, Pack) else load_pack(path_or_pack)
     if len(pack.shell) == 0 or not np.isfinite(pack.mass) \

@@ -22,7 +22,8 @@ from peclet.core.validation import check_float, check_int
 from .containers import Container
 from .material import as_material
 from .progress import Progress, compile_note
-from .protocols import Body, PageProtocol, RunState, drive, insert_bodies, new_simulation
+from .protocols import (Body, PageProtocol, RunState, check_gravity, drive, insert_bodies,
+                        new_simulation)
 from .protocols import start_cloud as _start_cloud
 
 __all__ = ["Protocol", "PourResult", "start_cloud", "pour", "y_top_for"]
@@ -80,7 +81,8 @@ def pour(particle, n=48, box=3.5, seed=5, protocol=None, material=(0.15, 0.0, 0.
     inv_inertia_unit, register(sim)) into a periodic box of side ``box``, then tap and quench.
 
     material = (e_n, e_t, mu) for the bodies and the floor; iterations = (position, velocity)
-    solver sweeps; gravity the magnitude of g (length/time^2, acting along -y); y_top the
+    solver sweeps; gravity the magnitude of g (length/time^2, > 0, acting along -y towards the
+    floor: a value <= 0 is refused, :func:`~peclet.packing.bed.protocols.check_gravity`); y_top the
     domain's top (None: sized from the start cloud, :func:`y_top_for`; a value below the
     cloud's top + 2 is an error). ``progress`` draws a bar on stderr. Returns a
     :class:`PourResult`.
@@ -88,6 +90,7 @@ def pour(particle, n=48, box=3.5, seed=5, protocol=None, material=(0.15, 0.0, 0.
     proto = Protocol() if protocol is None else protocol
     check_int("frame_every", frame_every, 1)
     n = check_int("n", n, 1)
+    gravity = check_gravity(gravity)
     mat = as_material(material)
     cont = Container("box", (check_float("box", box, 0.0, lo_open=True),))
     body = Body(-1, float(particle.mass), np.asarray(particle.inv_inertia_unit, float),

@@ -15,10 +15,14 @@ ends) :func:`drive` records in ``RunState.landing`` how many bodies move faster 
 :data:`LAND_SPEED` (1 D/time: the speed of a free fall of 0.05 D, the rain protocol's default
 ``rest_speed`` for a body at rest on the bed). A run with any such body did not land: its
 quench froze falling or bouncing elements, and the result is flagged (``PackResult.landed``
-False, a :class:`LandingWarning`; ``peclet pack`` refuses to analyse it). Recording reads the
-state only: a run's bits are the same with or without it. The page protocol's landing can
-also be predicted before any work from its start cloud (:meth:`PageProtocol.check_landing`,
-the rule of ``peclet pall-ring``).
+False, a :class:`LandingWarning`; ``peclet pack`` refuses to analyse it). When the run ends,
+:func:`drive` also counts the bodies still in the air (:func:`in_air`: no chain of bounding
+spheres within :data:`AIR_GAP` D of one another reaches the floor, or a tree container's wall);
+a run that ends with any is flagged the same way (the speed rule misses a body that the quench
+slowed in mid-air: a batch inserted at rest and quenched at once falls at ~0.5 D/time).
+Recording reads the state only: a run's bits are the same with or without it. The page
+protocol's landing can also be predicted before any work from its start cloud
+(:meth:`PageProtocol.check_landing`, the rule of ``peclet pall-ring``).
 """
 from __future__ import annotations
 
@@ -32,12 +36,17 @@ from peclet.core.validation import PecletArgumentError, check_float, check_int
 
 __all__ = ["Protocol", "Phase", "PROTOCOLS", "PageProtocol", "RainProtocol", "RunState", "Body",
            "start_cloud", "drive", "parse_protocol", "new_simulation", "insert_bodies",
-           "LAND_SPEED", "LandingWarning", "landing_state"]
+           "LAND_SPEED", "LandingWarning", "landing_state", "AIR_GAP", "in_air",
+           "check_gravity"]
 
 G = 9.81
 
 #: A body moving faster than this (D/time) when the quench starts has not landed.
 LAND_SPEED = 1.0
+
+#: A body whose bounding sphere is farther than this (D) from the floor and from every
+#: supported body's bounding sphere when the run ends is in the air (:func:`in_air`).
+AIR_GAP = 0.25
 
 
 class LandingWarning(RuntimeWarning):
@@ -591,11 +600,34 @@ def insert_bodies(sim, body, pos, quat, vel):
         sim.set_angular_velocities(W)
 
 
+def check_gravity(value, name="gravity"):
+    """``value`` as the magnitude of g (length/time^2): a finite number > 0. Every protocol
+    applies it along -y, towards the floor (or a tree container's bottom) its bed forms on; a
+    negative magnitude would point up, lifting the bodies off the floor, and zero would leave
+    them where they were put: either run returns a "bed" that never formed.
+    PecletArgumentError naming ``name``."""
+    try:
+        g = float(value) if not isinstance(value, (bool, str)) else math.nan
+    except (TypeError, ValueError):
+        g = math.nan
+    if not (math.isfinite(g) and g > 0.0):
+        raise PecletArgumentError(
+            name, "the magnitude of g, a finite number > 0 (length/time^2, acting along -y "
+            "towards the floor the protocol builds its bed on)", value,
+            "g < 0 points up, away from the floor, and g = 0 switches gravity off: no bed "
+            "forms" if math.isfinite(g) else "")
+    return g
+
+
 def new_simulation(register, container, material, wall_material, iterations, gravity, dt,
                    y_top, count):
     """A Simulation set up as the page does (domain, periodicity, gravity, materials, solver
-    sweeps, the shape via ``register(sim)``, the container's walls, dt). Returns (sim, sid)."""
+    sweeps, the shape via ``register(sim)``, the container's walls, dt). ``gravity`` is the
+    magnitude of g (length/time^2, > 0: :func:`check_gravity`), acting along -y towards the
+    floor. Returns (sim, sid)."""
     from peclet.dem import Simulation
+
+    gravity = check_gravity(gravity)
 
     sim = Simulation(count + 8)
     lo, hi = container.domain(y_top)
@@ -632,11 +664,71 @@ def landing_state(sim, ctx, st, protocol=None):
                 fall_time=fall, landing_time=before, landed=moving == 0 and not late)
 
 
+def in_air(positions, r_b, d, container, gap=AIR_GAP):
+    """Boolean (N,): the bodies in the air, reading positions only.
+
+    A body is supported when its bounding sphere (radius ``r_b``, world) comes within
+    ``gap`` D (``d`` the element diameter, world) of the floor (``container.floor_y``) or, in
+    a tree container, of the wall (its fluid region's phi at the centre >= -(r_b + gap d)),
+    or within ``gap`` D of a supported body's bounding sphere (minimum images in a periodic
+    box). The rest are in the air: at the end of a run, nothing at rest is. Bounding spheres
+    hold the elements, so a body resting on another is always linked to it."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    n = len(P)
+    if n == 0:
+        return np.zeros(0, bool)
+    g = float(gap) * float(d)
+    seed = P[:, 1] - r_b <= container.floor_y + g
+    if container.kind == "tree":
+        seed |= container.fluid_phi(P) >= -(r_b + g)
+    X = P.copy()
+    box = None
+    if any(container.periodic):
+        L = container.period
+        span = float(X[:, 1].max() - X[:, 1].min()) + 4.0 * r_b + 2.0 * g + 1.0
+        X[:, 0] = np.mod(X[:, 0], L[0])
+        X[:, 2] = np.mod(X[:, 2], L[1])
+        X[:, 1] -= X[:, 1].min()
+        box = np.array([L[0], 2.0 * span, L[1]])
+        X = np.minimum(X, np.nextafter(box, 0.0))     # a coordinate rounded up to L
+    pairs = cKDTree(X, boxsize=box).query_pairs(2.0 * r_b + g, output_type="ndarray")
+    # node n is the floor (and walls): an edge from it to every seed
+    s = np.flatnonzero(seed)
+    rows = np.concatenate([pairs[:, 0], np.full(len(s), n)])
+    cols = np.concatenate([pairs[:, 1], s])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
+    _, label = connected_components(graph, directed=False)
+    return label[:n] != label[n]
+
+
+def record_in_air(sim, ctx, st):
+    """Add the end-of-run count of bodies in the air (:func:`in_air`) to the landing record
+    ``st.landing``: ``in_air``, ``air_step`` (the run's last step), ``air_gap`` (D) and
+    ``air_top`` (the highest such centre above the floor, D); a run with any is not
+    ``landed``."""
+    rec = st.landing
+    body, cont = ctx["body"], ctx["container"]
+    n = sim.num_particles()
+    P = np.asarray(sim.get_positions(), dtype=np.float64).reshape(n, 3) if n \
+        else np.zeros((0, 3))
+    air = in_air(P, body.r_b, body.d, cont)
+    k = int(np.count_nonzero(air))
+    rec.update(in_air=k, air_step=int(st.step), air_gap=AIR_GAP,
+               air_top=float((P[air, 1].max() - cont.floor_y) / body.d) if k else 0.0)
+    rec["landed"] = bool(rec["landed"]) and k == 0
+    return rec
+
+
 def drive(sim, protocol, ctx, st, rng, max_steps=None, on_step=None):
     """Step ``protocol`` from ``st`` until it is done or ``st.step`` reaches ``max_steps``;
     appends each step's kinetic energy to ``st.ke`` and calls ``on_step(st)`` after it.
     Records the landing rule (``st.landing``, :func:`landing_state`) when the quench starts,
-    or when a run without a quench ends."""
+    or when a run without a quench ends, and at the end the bodies still in the air
+    (:func:`record_in_air`)."""
     quench_next = getattr(protocol, "quench_next", None)
     while not st.done and (max_steps is None or st.step < max_steps):
         if st.landing is None and quench_next is not None and quench_next(st):
@@ -646,4 +738,6 @@ def drive(sim, protocol, ctx, st, rng, max_steps=None, on_step=None):
             on_step(st)
     if st.done and st.landing is None:
         st.landing = landing_state(sim, ctx, st, protocol)
+    if st.done and "in_air" not in st.landing:
+        record_in_air(sim, ctx, st)
     return st

@@ -39,7 +39,9 @@ share of 36 angular sectors holding a grain within 2.5 D of the wall; reported o
 ``high`` (the share of grains above y = R / 2: none in a tumbling bed of fill <= 0.5, a third
 of a ring on the wall).
 
-Regime (:func:`classify`, over the measured samples), first match wins:
+Regime (:func:`classify`, over the measured samples), first match wins (a bed of fewer than
+:data:`MIN_GRAINS` grains has no free surface to classify: :meth:`Drum.check_room` refuses
+such a fill, and :func:`classify` given the grain count calls it "undetermined"):
 
 - centrifuging: corotating >= 0.9 and high >= 0.15 (the bed turns with the drum and is
   carried over the top: a ring stuck to the wall);
@@ -99,7 +101,8 @@ from peclet.core.validation import PecletArgumentError, check_float
 from ..bed import checkpoint as ckpt
 from .series import Phase, check_work, grains_mesh, run_phases, write_series
 
-__all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "G", "froude_of_rpm",
+__all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "MIN_GRAINS", "G",
+           "froude_of_rpm",
            "rpm_of_froude", "run_drum", "resume_drum", "checkpoint_dir", "read_checkpoint",
            "same_spec", "OUTPUTS",
            "add_drum_wall"]
@@ -117,6 +120,15 @@ CATARACT_AIRBORNE = 0.01
 SLUMP_REST_SHARE = 0.2
 REST_FLOWING = 0.02
 CASCADE_S_SHAPE = 0.035
+
+#: Surface points (column tops, columns 1 D wide) the free surface's line fit takes at least.
+SURFACE_POINTS = 4
+#: The fewest grains whose regime is defined: every regime but centrifuging describes the bed's
+#: free surface, whose fit takes at least SURFACE_POINTS column tops, and a column's top is a
+#: surface only over a bed beneath it (at least two grains a column): 2 x 4 = 8 grains. One
+#: grain alone rests in the drum or rolls in it, which the criteria would call "slumping" or
+#: "rolling"; it is no bed.
+MIN_GRAINS = 2 * SURFACE_POINTS
 
 #: Wall ribs (``ribs`` > 0): boxes along the axis centred on the wall, protruding
 #: RIB_HEIGHT D into the drum, 2 RIB_HALF_WIDTH D wide (a rough wall: a bed of spheres
@@ -314,8 +326,9 @@ class Drum:
     # ------------------------------------------------------------------ setup
     def check_room(self, name="fill", length_name="length", speed_name="froude",
                    speed_given=None):
-        """Refuse (before any work) a drum shorter than a grain, a fill its start lattice
-        cannot hold, and a speed so slow the run's turning steps cannot finish
+        """Refuse (before any work) a drum shorter than a grain, a fill of fewer than
+        :data:`MIN_GRAINS` grains (no bed to classify), a fill its start lattice cannot hold,
+        and a speed so slow the run's turning steps cannot finish
         (:func:`~peclet.packing.experiments.series.check_work`; the error names ``speed_name`` and shows
         ``speed_given``, default the Froude number)."""
         check_work(self.schedule(), self.count, speed_name,
@@ -324,6 +337,14 @@ class Drum:
             raise PecletArgumentError(length_name, f"at least a grain's bounding diameter "
                                       f"+ 0.05 D ({2.0 * self.grains['r_b'] + 0.05:.3g} D)",
                                       self.spec.length)
+        if self.count < MIN_GRAINS:
+            raise PecletArgumentError(
+                name, f"a fill of at least {MIN_GRAINS} grains (a bed with a free surface: its "
+                f"fit takes {SURFACE_POINTS} column tops 1 D wide, each over a grain beneath "
+                "it)", self.spec.fill,
+                f"{self.count} grain{'s' if self.count != 1 else ''} in a drum of radius "
+                f"{self.spec.radius:g} D and length {self.spec.length:g} D: no regime to "
+                "classify; fill more, or a larger drum")
         rng = np.random.default_rng(0)
         if _lattice(self.spec, self.grains["r_b"], self.count, rng) is None:
             raise PecletArgumentError(name, "a fill the drum holds on its start lattice",
@@ -446,7 +467,7 @@ def measure(X, V, r, R, omega, d=1.0, window=None):
     rad = np.hypot(X[:, 0], X[:, 1])
     out = dict(angle=math.nan, s_shape=math.nan, slope=math.nan, intercept=math.nan,
                points=int(len(xs)))
-    if len(xs) >= 4:
+    if len(xs) >= SURFACE_POINTS:
         a, b = np.polyfit(xs, ys, 1)
         out.update(slope=float(a), intercept=float(b), angle=math.degrees(math.atan(a)))
         if len(xs) >= 6:
@@ -468,11 +489,15 @@ def measure(X, V, r, R, omega, d=1.0, window=None):
     return out
 
 
-def classify(samples):
+def classify(samples, grains=None):
     """The regime of the measured ``samples`` (list of :func:`measure` dicts) and the
-    criteria's values (see the module notes)."""
+    criteria's values (see the module notes). ``grains``: the bed's grain count, if known; a
+    bed of fewer than :data:`MIN_GRAINS` is "undetermined" (criteria: ``grains`` and
+    ``min_grains``), having no free surface to classify."""
     if not samples:
         return "undetermined", {}
+    if grains is not None and int(grains) < MIN_GRAINS:
+        return "undetermined", dict(grains=int(grains), min_grains=MIN_GRAINS)
     m = lambda k: float(np.nanmean([s[k] for s in samples])) \
         if np.any(np.isfinite([s[k] for s in samples])) else math.nan  # noqa: E731
     crit = dict(coverage=m("coverage"), corotating=m("corotating"), airborne=m("airborne"),
@@ -675,7 +700,7 @@ def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
     bar.close()
     wall = time.perf_counter() - t_start
     meas = [s for s in samples if s["phase"] == "measure"]
-    regime, crit = classify(meas)
+    regime, crit = classify(meas, drum.count)
     stats = angle_stats([s["t"] for s in meas], [s["angle"] for s in meas], t_rev)
     ang = stats if regime != "centrifuging" else dict(stats, mean=math.nan)
     fill_meas = _measured_fill(meas, R)
