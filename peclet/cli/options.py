@@ -19,11 +19,12 @@ ELEMENT_HELP = (
     "r_outer) [0.12]. berl_saddle: R > 0, the torus centre-line radius [0.5]; r in (0, R), "
     "the tube radius [0.2]. intalox_saddle: R > 0 [0.5]; r in (0, R) [0.3]; thickness in "
     "(0, r) [0.06]. sphere: radius > 0 [0.5]. solid_cylinder: radius > 0 [0.5]; height > 0 "
-    "[1]. Out-of-range, unknown or non-numeric parameters are refused. Shell probes follow "
+    "[1]. Every length lies in [1e-6, 1e6] and within a factor 1000 of D. Out-of-range, "
+    "unknown or non-numeric parameters are refused. Shell probes follow "
     "the thinnest wall (spacing <= its thickness): a thin-walled element gets more probes "
     "and packs slower (t/D = 0.02: about 15 000 probes, 2.5x the time per step).")
 CONTAINER_HELP = ("box:L (periodic) | column:N (diameter N D, floor at y = 0) | walled:Lx,Lz, "
-                  "in element diameters D (default box:3.5, the page's)")
+                  "in element diameters D, each in [1.5, 1e4] (default box:3.5, the page's)")
 
 
 def add_bed_options(parser, protocols=("page", "rain")):

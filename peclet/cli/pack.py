@@ -53,9 +53,10 @@ def add_parser(sub):
     p.add_argument("--insert-every", default=None,
                    help="rain only: steps between insertions (default 4)")
     p.add_argument("--drop", default=None, help="rain only: insertion height above the bed, "
-                   "in D (default 30)")
+                   "in D, in [0, 1e4] (default 30)")
     p.add_argument("--rate", default=None, help="grow only: starting growth rate d ln(phi)/dt "
-                   "in (0, 10] (default 0.5; the overlap control slows it near jamming)")
+                   "in (0, 10], at least 1e-4 (default 0.5; the overlap control slows it near "
+                   "jamming)")
     p.add_argument("--out", default=None, help="output directory (default ./pack_results; "
                    "with --resume: the resumed run's)")
     p.add_argument("--threads", default=None, help="numba threads (default: numba's)")
@@ -204,6 +205,7 @@ def _check_out(out, overwrite, resuming_from=None):
 def run(args):
     from peclet.packing.bed import api
     from peclet.packing.bed import checkpoint as ckpt
+    from peclet.packing.bed.containers import MAX_DROP
 
     threads = None if args.threads is None else _num("--threads", args.threads, int, lo=1)
     every = _num("--checkpoint-every", args.checkpoint_every, int, lo=1)
@@ -281,7 +283,8 @@ def run(args):
     batch = _num("--batch", "1" if args.batch is None else args.batch, int, lo=1)
     every_k = _num("--insert-every", "4" if args.insert_every is None else args.insert_every,
                    int, lo=1)
-    drop = _num("--drop", "30" if args.drop is None else args.drop, float, lo=0.0)
+    drop = _num("--drop", "30" if args.drop is None else args.drop, float, lo=0.0,
+                hi=MAX_DROP)
     proto = api.parse_protocol(args.protocol)
     if args.protocol == "page" and scale != 1.0:
         proto = proto.scaled(scale)
@@ -322,6 +325,10 @@ def _grow(args, count, seed, mu, e, threads):
                                       "has no walls)", given)
     rate = 0.5 if args.rate is None else _num("--rate", args.rate, float, lo=0.0, hi=10.0,
                                               lo_open=True)
+    floor = growth.GrowSpec().gamma_min
+    if rate < floor:          # the spec would blame gamma_min, which the CLI does not set
+        raise PecletArgumentError("--rate", f"in (0, 10] and >= {floor:g} (the rate below which "
+                                  "the bed counts as jammed)", rate)
     if isinstance(args.element, str) and args.element.endswith(".npz"):
         raise PecletArgumentError("--element", "a library element with --protocol grow",
                                   args.element)

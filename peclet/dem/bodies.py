@@ -4,6 +4,9 @@ Frames: ``pos`` centres of mass (world), ``quat`` (x, y, z, w) unit, active, hom
 ``vel``/``omega`` world frame (omega in rad / time), ``inv_mass`` (0 = not moved by contacts or
 gravity), ``inv_inertia`` the principal inverse moments 1 / (mass length^2) (0 = a locked axis;
 a NaN row = the default, a uniform solid sphere of the shape's bounding radius).
+
+Extreme finite numbers (:mod:`peclet.dem.limits`): coordinates of magnitude <= 1e100, speeds
+and angular speeds <= 1e100, inverse masses and moments 0 or in [1e-100, 1e100].
 """
 from __future__ import annotations
 
@@ -11,6 +14,7 @@ import numpy as np
 
 from peclet.core.geom.transforms import normalize_rows, quats_to_matrices
 from peclet.core.validation import PecletArgumentError, check_array
+from peclet.dem.limits import check_inverses, check_magnitudes, check_row_norms
 
 _IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 
@@ -61,6 +65,7 @@ class Bodies:
 
     def set_positions(self, positions):
         p = check_array("positions", positions, (None, 3))
+        check_magnitudes("positions", p, positions, "coordinates")
         self.resize(len(p))
         self.pos = p.copy()
 
@@ -88,16 +93,24 @@ class Bodies:
         self.quat = unit
 
     def set_inv_mass(self, inv_mass):
-        self.inv_mass = self._rows("inv_mass", inv_mass, (), nonneg=True)
+        a = self._rows("inv_mass", inv_mass, (), nonneg=True)
+        check_inverses("inv_mass", a, inv_mass)
+        self.inv_mass = a
 
     def set_inv_inertia(self, inv_inertia):
-        self.inv_inertia = self._rows("inv_inertia", inv_inertia, (3,), nonneg=True)
+        a = self._rows("inv_inertia", inv_inertia, (3,), nonneg=True)
+        check_inverses("inv_inertia", a, inv_inertia)
+        self.inv_inertia = a
 
     def set_velocities(self, v):
-        self.vel = self._rows("velocities", v, (3,))
+        a = self._rows("velocities", v, (3,))
+        check_row_norms("velocities", a, v)
+        self.vel = a
 
     def set_angular_velocities(self, w):
-        self.omega = self._rows("angular_velocities", w, (3,))
+        a = self._rows("angular_velocities", w, (3,))
+        check_row_norms("angular_velocities", a, w, unit="rad/time")
+        self.omega = a
 
     def resolved_inv_inertia(self, radii):
         """Inverse moments with the NaN (default) rows resolved: a uniform solid sphere of the

@@ -333,17 +333,18 @@ def grid_for(pos, cutoff, domain_lo, domain_hi, periodic, max_cells):
             lo[a] = 0.0
             ext[a] = 0.0
     size = max(cutoff, 1e-300)
+    cap = float(max_cells) + 1.0      # a count past the cap only means "grow the cells"
     while True:
         dims = np.empty(3, np.int64)
         cell = np.empty(3)
         for a in range(3):
             if periodic[a]:
-                dims[a] = max(1, int(ext[a] // size))
+                dims[a] = max(1, int(min(ext[a] // size, cap)))
                 cell[a] = ext[a] / dims[a]
             else:
-                dims[a] = int(ext[a] // size) + 1
+                dims[a] = int(min(ext[a] // size, cap)) + 1
                 cell[a] = size
-        if int(np.prod(dims)) <= max_cells:
+        if int(dims[0]) * int(dims[1]) * int(dims[2]) <= max_cells:    # no int64 wrap
             return lo, cell, dims, box
         size *= 1.5
 

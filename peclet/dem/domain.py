@@ -5,6 +5,7 @@ import numpy as np
 from numba import njit
 
 from peclet.core.validation import PecletArgumentError, check_array, check_bool
+from peclet.dem.limits import MIN_LENGTH, check_magnitudes
 
 
 class Domain:
@@ -30,11 +31,19 @@ class Domain:
         self.any_periodic = bool(self._periodic.any())
 
     def set_box(self, lo, hi):
+        """The box [lo, hi): coordinates of magnitude <= 1e100, each side hi - lo in
+        [1e-100, 2e100] (length; :mod:`peclet.dem.limits`)."""
         lo = check_array("lo", lo, (3,))
         hi = check_array("hi", hi, (3,))
         if not np.all(hi > lo):
             raise PecletArgumentError("hi", "greater than lo on every axis of the domain",
                                       hi.tolist(), f"lo = {lo.tolist()}")
+        check_magnitudes("lo", lo, lo.tolist(), "coordinates")
+        check_magnitudes("hi", hi, hi.tolist(), "coordinates")
+        if not np.all(hi - lo >= MIN_LENGTH):
+            raise PecletArgumentError("hi", f"at least {MIN_LENGTH:g} above lo on every axis "
+                                      "(a domain side is a length)", hi.tolist(),
+                                      f"lo = {lo.tolist()}")
         self.lo, self.hi = lo.copy(), hi.copy()
 
     def set_periodic(self, px, py, pz):

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 #: Speed guard: |v| (and |omega| times the bounding radius) must stay below this many domain
@@ -55,14 +54,18 @@ def _first_bad(x, q, v, w, radii, bound):
     return 0, -1
 
 
-def check_state(x, q, v, w, radii, bound, step):
+def check_state(x, q, v, w, radii, bound, step, cause=""):
     """Raise :class:`StepError` naming ``step`` and the first particle whose state is
-    non-finite or whose speed (|v|, or |omega| times its radius) exceeds ``bound``."""
+    non-finite or whose speed (|v|, or |omega| times its radius) exceeds ``bound``; ``cause``
+    (the user's inputs that stage of the step applied, e.g. the gravity times dt) is added
+    to the message."""
     kind, i = _first_bad(x, q, v, w, radii, float(bound))
+    tail = f"; {cause}" if cause else ""
     if kind == 1:
         raise StepError(f"step {step}: particle {i} has a non-finite state "
-                        f"(x={x[i]}, v={v[i]}, omega={w[i]})", step, i)
+                        f"(x={x[i]}, v={v[i]}, omega={w[i]}){tail}", step, i)
     if kind == 2:
-        speed = max(float(np.sqrt((v[i] ** 2).sum())), float(np.sqrt((w[i] ** 2).sum())) * radii[i])
+        # hypot: an overflowing square must not turn a huge speed into inf (or a warning)
+        speed = max(math.hypot(*v[i]), math.hypot(*w[i]) * float(radii[i]))
         raise StepError(f"step {step}: particle {i} moves at {speed:.6g} > the bound "
-                        f"{bound:.6g} (1e3 domain sizes per unit time)", step, i)
+                        f"{bound:.6g} (1e3 domain sizes per unit time){tail}", step, i)

@@ -78,7 +78,7 @@ def step(world, dt):
         inv_inertia = np.where(frozen[:, None], 0.0, inv_inertia)
         q_frozen = q[frozen]
     _predict(world, dt, inv_mass, inv_inertia, q, v, w)
-    world.guard(x, q, v, w, limits)             # before any kernel sees a bad value
+    world.guard(x, q, v, w, limits, world.load_cause(dt))   # before any kernel sees it
     wall_moving = None if frozen is None else world.wall_motion.moving_walls()
     c = world.detect(x, quats_to_matrices(q), *world.margins(v, w, dt, x, radii, moving),
                      frozen, None if frozen is None else ~wall_moving)

@@ -16,12 +16,16 @@ import numpy as np
 
 from peclet.core.geom import encoding
 from peclet.core.validation import PecletArgumentError, check_array, check_float
+from peclet.dem.limits import MIN_SCALE
 from peclet.dem.shapes import SceneShape, SphereShape, scene_shape, sphere_shape
 
 __all__ = ["Scales", "scaled_shape", "MAX_SCALE"]
 
-#: Scales lie in (0, MAX_SCALE]; beyond it a shape's bounding sphere outgrows any domain.
+#: Scales lie in [MIN_SCALE, MAX_SCALE] (:data:`peclet.dem.limits.MIN_SCALE` = 1e-6, below
+#: which a body's mass and inertia factors s^3, s^5 and its size against its own shape lose
+#: meaning); beyond MAX_SCALE a shape's bounding sphere outgrows any domain.
 MAX_SCALE = 1e3
+_RANGE = f"in (0, {MAX_SCALE:g}], at least {MIN_SCALE:g}"
 
 
 def scaled_shape(shape, s):
@@ -53,16 +57,19 @@ class Scales:
             self.values = out
 
     def checked(self, scales, n):
-        """``scales`` as a validated (n,) float64 array in (0, MAX_SCALE]."""
+        """``scales`` as a validated (n,) float64 array in [MIN_SCALE, MAX_SCALE]."""
         a = check_array("scales", scales, (n,))
-        if np.any(a <= 0.0) or np.any(a > MAX_SCALE):
-            raise PecletArgumentError("scales", f"numbers in (0, {MAX_SCALE:g}]", scales,
+        if np.any(a < MIN_SCALE) or np.any(a > MAX_SCALE):
+            raise PecletArgumentError("scales", f"numbers {_RANGE}", scales,
                                       f"values in [{a.min():.4g}, {a.max():.4g}]")
         return a.copy()
 
     @staticmethod
     def checked_uniform(scale):
-        return check_float("scale", scale, 0.0, MAX_SCALE, lo_open=True)
+        s = check_float("scale", scale, 0.0, MAX_SCALE, lo_open=True)
+        if s < MIN_SCALE:
+            raise PecletArgumentError("scale", f"a finite number {_RANGE}", scale)
+        return s
 
     def active(self):
         return self.values is not None and bool(np.any(self.values != 1.0))

@@ -17,7 +17,8 @@ import numpy as np
 
 from peclet.core.geom import quadrature
 from peclet.core.geom.shell import shell_probes
-from peclet.core.validation import PecletArgumentError
+from peclet.core.validation import PecletArgumentError, check_float
+from peclet.dem.limits import MAX_INVERSE, MAX_LENGTH, MIN_INVERSE, MIN_LENGTH
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,24 @@ def _as_bounds(bounds):
         lo, hi = bounds
     except (TypeError, ValueError):
         raise ValueError(f"bounds must be (lo, hi) with 3 numbers each, got {bounds!r}") from None
-    return quadrature.check_box(lo, hi)
+    lo, hi = quadrature.check_box(lo, hi)
+    if max(float(np.abs(lo).max()), float(np.abs(hi).max())) > MAX_LENGTH \
+            or float((hi - lo).min()) < MIN_LENGTH:
+        raise PecletArgumentError("bounds", f"a box with coordinates of magnitude <= "
+                                  f"{MAX_LENGTH:g} and sides >= {MIN_LENGTH:g} (lengths; "
+                                  "peclet.dem.limits)", bounds)
+    return lo, hi
+
+
+def _check_mass(density, props):
+    """Refuse a density whose mass or principal moments (density r^3, density r^5) leave
+    [MIN_INVERSE, MAX_INVERSE]: their inverses are the body's inverse mass and moments."""
+    vals = [float(props.mass)] + [float(p) for p in props.principal]
+    if not all(MIN_INVERSE <= v <= MAX_INVERSE for v in vals):
+        raise PecletArgumentError(
+            "density", f"a density giving a mass and principal moments in [{MIN_INVERSE:g}, "
+            f"{MAX_INVERSE:g}] (their inverses are the DEM's inverse mass and moments)",
+            density, f"mass {vals[0]:g}, moments {', '.join(f'{v:g}' for v in vals[1:])}")
 
 
 def check_bounded(builder, root, name="root"):
@@ -84,7 +102,8 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
 
     Parameters
     ----------
-    bounds : (lo, hi), a box in the authoring frame that contains the solid.
+    bounds : (lo, hi), a box in the authoring frame that contains the solid (coordinates of
+        magnitude <= 1e100, sides >= 1e-100).
     n : int in [2, 4096], the quadrature's sampling resolution per axis of ``bounds`` (see
         :func:`quadrature.body_properties`: ``ceil(n / 4)`` top-level cells, refined
         adaptively). The page's n = 32 measures the Pall ring to ~1e-9 relative.
@@ -92,7 +111,8 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
         reached).
     shell_resolution : int in [8, 1024], marching-cubes lattice per axis for the shell.
     target_shell_points : int >= 4, number of shell probes (exact).
-    density : > 0.
+    density : > 0, such that the mass and principal moments lie in [1e-100, 1e100]
+        (:mod:`peclet.dem.limits`; checked once measured).
     cache : optional dict shared between builds of the same tree and bounds (the quadrature's,
         :func:`quadrature.body_properties`): a second build, e.g. with more shell probes,
         measures nothing again. The results are bitwise the same with or without it.
@@ -105,6 +125,7 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
     """
     check_bounded(builder, root)
     lo, hi = _as_bounds(bounds)
+    density = check_float("density", density, 0.0, lo_open=True)
     t = target_shell_points
     if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 4:
         raise ValueError(f"target_shell_points must be an integer >= 4, got {t!r}")
@@ -113,6 +134,7 @@ def build(builder, root, bounds, n=32, shell_resolution=112, target_shell_points
         raise ValueError(f"shell_resolution must be an integer in [8, 1024], got {r!r}")
     home, props = quadrature.principal_frame(builder, root, lo, hi, density=density, n=n,
                                               tol=tol, cache=cache)
+    _check_mass(density, props)
     # a box in the home frame containing the solid: the authoring box's corners, rotated
     At = props.axes.T
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])

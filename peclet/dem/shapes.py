@@ -20,6 +20,7 @@ from peclet.core.geom import SceneBuilder
 from peclet.core.geom.program import compile_root, concatenate
 from peclet.core.geom.pruning import bake_pruned, concatenate_pruned
 from peclet.dem import distgrid
+from peclet.dem.limits import check_length, check_size_ratio
 from peclet.core.validation import (PecletArgumentError, check_array, check_bool,
                                     check_float, check_int)
 
@@ -151,19 +152,26 @@ def _tree(node_ints, node_reals, root):
 
 
 def sphere_shape(radius):
-    """A validated :class:`SphereShape` (``radius`` finite, > 0)."""
-    return SphereShape(check_float("radius", radius, 0.0, lo_open=True))
+    """A validated :class:`SphereShape` (``radius`` in [1e-100, 1e100], length;
+    :mod:`peclet.dem.limits`)."""
+    return SphereShape(check_length("radius", check_float("radius", radius, 0.0, lo_open=True)))
 
 
-def scene_shape(node_ints, node_reals, root, shell_points, bounding_radius):
-    """A validated :class:`SceneShape`; the bounding radius is raised to the farthest probe."""
+def scene_shape(node_ints, node_reals, root, shell_points, bounding_radius, radii_in_use=None):
+    """A validated :class:`SceneShape`; the bounding radius is raised to the farthest probe
+    and must then lie in [1e-100, 1e100] (length; :mod:`peclet.dem.limits`) and, given the
+    bounding radii already ``radii_in_use``, within a factor 1e6 of them, checked before the
+    shape's grids are built."""
     b, ni, nr, root = _tree(node_ints, node_reals, root)
     shell = check_array("shell_points", shell_points, (None, 3))
     if len(shell) == 0:
         raise PecletArgumentError("shell_points", "an array of shape (M, 3) with M >= 1",
                                   shell_points)
     br = check_float("bounding_radius", bounding_radius, 0.0, lo_open=True)
-    br = max(br, float(np.sqrt((shell ** 2).sum(axis=1)).max()))
+    far = float(np.hypot(np.hypot(shell[:, 0], shell[:, 1]), shell[:, 2]).max())
+    br = check_length("bounding_radius", max(br, far))   # raised to the farthest probe
+    if radii_in_use is not None:
+        check_size_ratio("bounding_radius", br, radii_in_use)
     prog = compile_root(ni, nr, root)
     lip = bool(b.is_lipschitz(root))
     if lip:

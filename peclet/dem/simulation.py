@@ -26,13 +26,14 @@ import hashlib
 
 import numpy as np
 
-from peclet.core.validation import check_float, check_int
+from peclet.core.validation import PecletArgumentError, check_float, check_int
 from peclet.dem import broadphase, impulse, narrowphase, persistence, solver
 from peclet.dem.api_laws import ContactLaws
 from peclet.dem.api_walls import WallsAndLoads
 from peclet.dem.contacts import listing, overlap_pairs
 from peclet.dem.guards import StepError  # noqa: F401 (API)
 from peclet.dem.impulse import MAX_SOLVER_ITERATIONS, PARALLEL_ROTATION_BODIES  # noqa: F401
+from peclet.dem.limits import MAX_SIZE_RATIO, check_inverses, check_size_ratio
 from peclet.dem.materials import material
 from peclet.dem.scales import Scales
 from peclet.dem.shapes import analytic_wall, scene_shape, sphere_shape
@@ -91,8 +92,9 @@ class Simulation(WallsAndLoads, ContactLaws):
 
     # ------------------------------------------------------------------ configuration
     def set_domain(self, lo, hi):
-        """Axis-aligned domain [lo, hi) (3 finite numbers each, hi > lo on every axis). Used
-        by periodic axes and the speed guard."""
+        """Axis-aligned domain [lo, hi) (3 finite numbers each, of magnitude <= 1e100, hi - lo
+        in [1e-100, 2e100] on every axis: :mod:`peclet.dem.limits`). Used by periodic axes and
+        the speed guard."""
         self.world.domain.set_box(lo, hi)
 
     def enable_periodicity(self, px, py, pz):
@@ -101,7 +103,8 @@ class Simulation(WallsAndLoads, ContactLaws):
         self.world.domain.set_periodic(px, py, pz)
 
     def set_gravity(self, gx, gy, gz):
-        """Gravitational acceleration (world frame, length / time^2), three finite numbers."""
+        """Gravitational acceleration (world frame, length / time^2), three finite numbers
+        (any: a ``g dt`` that overflows stops the step with a StepError naming the gravity)."""
         self.world.gravity = np.array([check_float("gx", gx), check_float("gy", gy),
                                   check_float("gz", gz)])
 
@@ -144,8 +147,9 @@ class Simulation(WallsAndLoads, ContactLaws):
         self.world.margin_fraction = check_float("fraction", fraction, 0.0, 10.0, lo_open=True)
 
     def set_dt(self, dt):
-        """Default time step for :meth:`step` (finite, > 0)."""
-        self.world.dt = check_float("dt", dt, 0.0, lo_open=True)
+        """Default time step for :meth:`step` (time, in [1e-100, 1e100]:
+        :mod:`peclet.dem.limits`)."""
+        self.world.dt = self.world.checked_dt(dt)
 
     def set_contact_capacity(self, n):
         """Initial size hint (contacts, an integer in [1, 10**7]) of the narrow phase's
@@ -160,8 +164,12 @@ class Simulation(WallsAndLoads, ContactLaws):
 
     # ------------------------------------------------------------------ shapes and walls
     def add_sphere_shape(self, radius):
-        """Register a sphere of ``radius`` (finite, > 0); returns its shape id."""
-        return self.world.register(self.world.shapes, sphere_shape(radius))
+        """Register a sphere of ``radius`` (length, in [1e-100, 1e100], and within a factor
+        1e6 of every bounding radius in use: :mod:`peclet.dem.limits`); returns its shape
+        id."""
+        shape = sphere_shape(radius)
+        check_size_ratio("radius", shape.radius, self.world.radii_in_use())
+        return self.world.register(self.world.shapes, shape)
 
     def add_scene_shape(self, node_ints, node_reals, root, shell_points, bounding_radius):
         """Register a composed CSG particle; returns its shape id.
@@ -170,10 +178,13 @@ class Simulation(WallsAndLoads, ContactLaws):
         whose value (in its parent frame = the body's home frame, centred on the centre of
         mass, principal axes) is the particle; ``shell_points`` (M >= 1, 3) are surface probes
         in the same frame; ``bounding_radius`` (> 0) a radius about the origin containing the
-        solid (it is raised to the farthest probe if a probe lies outside it).
+        solid (it is raised to the farthest probe if a probe lies outside it), a length in
+        [1e-100, 1e100] within a factor 1e6 of every bounding radius in use
+        (:mod:`peclet.dem.limits`).
         """
-        return self.world.register(self.world.shapes, scene_shape(node_ints, node_reals, root,
-                                                        shell_points, bounding_radius))
+        shape = scene_shape(node_ints, node_reals, root, shell_points, bounding_radius,
+                            self.world.radii_in_use())
+        return self.world.register(self.world.shapes, shape)
 
     def add_analytic_wall(self, node_ints, node_reals, root, invert, e_n, mu):
         """A solid wall given by a CSG tree in the world frame (e.g. a box below the floor),
@@ -208,7 +219,8 @@ class Simulation(WallsAndLoads, ContactLaws):
             self.world.warm.clear()
 
     def set_positions(self, positions):
-        """Centres of mass (N, 3), world frame. Defines N (see the class docstring)."""
+        """Centres of mass (N, 3), world frame, coordinates of magnitude <= 1e100
+        (:mod:`peclet.dem.limits`). Defines N (see the class docstring)."""
         self._per_particle(self.world.bodies.set_positions, positions)
 
     def get_positions(self):
@@ -232,24 +244,43 @@ class Simulation(WallsAndLoads, ContactLaws):
         return self.world.bodies.quat.copy()
 
     def set_scales(self, scales):
-        """Scale factor per body (N,), each in (0, 1000]: a body of shape k and scale s is
+        """Scale factor per body (N,), each in [1e-6, 1000]: a body of shape k and scale s is
         shape k enlarged by s about its centre of mass (sphere radius, tree, probes, bounding
         radius; :mod:`peclet.dem.scales`). Mass and inertia follow: changing a body's scale
         from s to s' divides its inverse mass by (s'/s)^3 and its inverse moments by
         (s'/s)^5, so set masses for the CURRENT scales, or scales first. Positions are
-        centres and stay where they are (a grown body may overlap: :meth:`relax`)."""
-        b = self.world.bodies
-        new = self.world.scales.checked(scales, b.n)
-        self.world.sleep.wake_all()
-        self.world.scales.resize(b.n)
-        old = self.world.scales.values if self.world.scales.values is not None else np.ones(b.n)
+        centres and stay where they are (a grown body may overlap: :meth:`relax`). Refused
+        (nothing changes) when a scaled radius falls outside a factor 1e6 of the other
+        bounding radii in use, or a rescaled inverse mass or moment leaves [1e-100, 1e100]
+        (:mod:`peclet.dem.limits`)."""
+        w = self.world
+        b = w.bodies
+        new = w.scales.checked(scales, b.n)
+        w.scales.resize(b.n)
+        old = w.scales.values if w.scales.values is not None else np.ones(b.n)
+        if len(w.shapes) and b.n:
+            r = np.array([s.radius for s in w.shapes])
+            scaled = new * r[np.minimum(b.shape, len(r) - 1)]
+            lo, hi = min(r.min(), scaled.min()), max(r.max(), scaled.max())
+            if hi > MAX_SIZE_RATIO * lo * (1.0 + 1e-12):     # the bound itself is in
+                i = int(np.argmin(scaled) if scaled.min() == lo else np.argmax(scaled))
+                raise PecletArgumentError(
+                    "scales", f"numbers giving bounding radii within a factor "
+                    f"{MAX_SIZE_RATIO:g} of the registered shapes' [{r.min():g}, {r.max():g}] "
+                    "(the broad phase's cells follow the largest, the contact margins the "
+                    "smallest)", scales, f"body {i}: scale {new[i]:g} gives {scaled[i]:g}")
         k = new / old
-        b.inv_mass = b.inv_mass / k ** 3
-        b.inv_inertia = b.inv_inertia / (k ** 5)[:, None]
-        self.world.scales.values = new
+        inv_mass = b.inv_mass / k ** 3
+        inv_inertia = b.inv_inertia / (k ** 5)[:, None]
+        check_inverses("scales", inv_mass, scales, " (the inverse mass the scale implies)")
+        check_inverses("scales", np.nan_to_num(inv_inertia), scales,
+                       " (an inverse moment the scale implies)")
+        w.sleep.wake_all()
+        b.inv_mass, b.inv_inertia = inv_mass, inv_inertia
+        w.scales.values = new
 
     def set_scales_uniform(self, scale):
-        """Every body's scale set to ``scale`` in (0, 1000] (see :meth:`set_scales`)."""
+        """Every body's scale set to ``scale`` in [1e-6, 1000] (see :meth:`set_scales`)."""
         self.set_scales(np.full(self.world.bodies.n, Scales.checked_uniform(scale)))
 
     def get_scales(self):
@@ -259,15 +290,16 @@ class Simulation(WallsAndLoads, ContactLaws):
         return np.ones(self.world.bodies.n) if v is None else v.copy()
 
     def set_inv_mass(self, inv_mass):
-        """Inverse masses (N,), each finite and >= 0 (0 = not moved by contacts or gravity)."""
+        """Inverse masses (N,), 1/mass, each 0 (not moved by contacts or gravity) or in
+        [1e-100, 1e100] (:mod:`peclet.dem.limits`)."""
         self._per_particle(self.world.bodies.set_inv_mass, inv_mass)
 
     def get_inv_mass(self):
         return self.world.bodies.inv_mass.copy()
 
     def set_inv_inertia(self, inv_inertia):
-        """Principal inverse moments of inertia (N, 3), each finite and >= 0 (0 = locked
-        axis)."""
+        """Principal inverse moments of inertia (N, 3), 1/(mass length^2), each 0 (a locked
+        axis) or in [1e-100, 1e100] (:mod:`peclet.dem.limits`)."""
         self._per_particle(self.world.bodies.set_inv_inertia, inv_inertia)
 
     def get_inv_inertia(self):
@@ -275,14 +307,16 @@ class Simulation(WallsAndLoads, ContactLaws):
         return self.world.resolved_inv_inertia()
 
     def set_velocities(self, v):
-        """Linear velocities (N, 3), world frame."""
+        """Linear velocities (N, 3), world frame, length/time, each row of norm <= 1e100
+        (:mod:`peclet.dem.limits`)."""
         self._per_particle(self.world.bodies.set_velocities, v)
 
     def get_velocities(self):
         return self.world.bodies.vel.copy()
 
     def set_angular_velocities(self, w):
-        """Angular velocities (N, 3), world frame, rad / time."""
+        """Angular velocities (N, 3), world frame, rad / time, each row of norm <= 1e100
+        (:mod:`peclet.dem.limits`)."""
         self._per_particle(self.world.bodies.set_angular_velocities, w)
 
     def get_angular_velocities(self):

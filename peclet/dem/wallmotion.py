@@ -28,6 +28,7 @@ import numpy as np
 
 from peclet.core.geom.transforms import quat_multiply, quat_normalize, quats_to_matrices
 from peclet.core.validation import PecletArgumentError, check_array, check_int
+from peclet.dem.limits import MAX_SPEED, check_magnitudes
 
 __all__ = ["WallMotion", "UNIT_TOL"]
 
@@ -84,16 +85,26 @@ class WallMotion:
         if not abs(nq - 1.0) <= UNIT_TOL:
             raise PecletArgumentError("quaternion", f"a unit quaternion (x, y, z, w), |q| within "
                                       f"{UNIT_TOL:g} of 1", q.tolist(), f"|q| = {nq:.9g}")
+        check_magnitudes("translation", t, t.tolist(), "coordinates")
         self.pos[i] = t
         self.quat[i] = quat_normalize(q)
 
     def set_velocity(self, wall, linear, angular, center=(0.0, 0.0, 0.0)):
         """Rigid velocity of ``wall``: ``linear`` (length/time), ``angular`` (rad/time, a
-        world-frame vector) about the world point ``center``; each 3 finite numbers."""
+        world-frame vector) about the world point ``center``; each 3 finite numbers, the
+        speeds of norm <= 1e100 and the centre's coordinates of magnitude <= 1e100
+        (:mod:`peclet.dem.limits`). A surface speed beyond the step's speed bound at a body is
+        refused when a step starts (:meth:`check_speeds`)."""
         i = self.index(wall)
         v = check_array("linear", linear, (3,))
         w = check_array("angular", angular, (3,))
         c = check_array("center", center, (3,))
+        for name, a, unit in (("linear", v, "length/time"), ("angular", w, "rad/time")):
+            norm = float(np.hypot(np.hypot(a[0], a[1]), a[2]))
+            if norm > MAX_SPEED:
+                raise PecletArgumentError(name, f"a vector of norm <= {MAX_SPEED:g} ({unit}; "
+                                          "peclet.dem.limits)", a.tolist(), f"norm {norm:g}")
+        check_magnitudes("center", c, c.tolist(), "coordinates")
         self.vel[i], self.omega[i], self.center[i] = v, w, c
 
     def moving(self):
@@ -123,6 +134,25 @@ class WallMotion:
             u = self.vel[i] + np.cross(self.omega[i], pos - self.center[i])
             out[:, i] = np.sqrt((u * u).sum(axis=1)) + float(np.linalg.norm(self.omega[i])) * radii
         return out
+
+    def check_speeds(self, pos, radii, bound):
+        """Refuse (PecletArgumentError naming the wall's ``set_wall_velocity``) a wall whose
+        surface speed at some body (bounding sphere included, :meth:`surface_speeds`) exceeds
+        ``bound``, the step's speed limit (the guard's, 1e3 domain sizes per unit time): the
+        bodies it touches would be stopped by the guard anyway, after a step's work."""
+        if not len(pos):
+            return
+        with np.errstate(over="ignore", invalid="ignore"):
+            s = self.surface_speeds(pos, radii)
+        for i in range(self.n):
+            top = float(s[:, i].max()) if len(s) else 0.0
+            if not top <= bound:
+                k = int(np.argmax(np.nan_to_num(s[:, i], nan=np.inf)))
+                raise PecletArgumentError(
+                    f"wall {i}'s velocity (set_wall_velocity)", f"a surface speed at the "
+                    f"bodies <= the step's speed bound {bound:.6g} (1e3 domain sizes per unit "
+                    "time)", (self.vel[i].tolist(), self.omega[i].tolist()),
+                    f"{top:.6g} at body {k}, centre {self.center[i].tolist()}")
 
     def advance(self, dt):
         """Move every moving wall by its velocity over ``dt`` (see the module notes)."""

@@ -35,6 +35,7 @@ from peclet.dem.contacts import Detector, WarmStart, body_reach
 from peclet.dem.domain import Domain
 from peclet.dem.guards import check_state, speed_bound
 from peclet.dem.hertz import HertzState
+from peclet.dem.limits import MAX_DT, MIN_DT
 from peclet.dem.materials import SIMULATION_DEFAULT, MaterialTable
 from peclet.dem.scales import Scales
 from peclet.dem.shapes import build_geometry
@@ -134,6 +135,18 @@ class World:
         r = np.array([s.radius for s in shapes], dtype=np.float64)
         return r[ids]
 
+    def radii_in_use(self):
+        """(k,) bounding radii of the shapes the step's tables hold: every registered shape,
+        and each scaled body's (scale times its shape's), without building scaled shapes."""
+        r = np.array([s.radius for s in self.shapes], dtype=np.float64)
+        b = self.bodies
+        self.scales.resize(b.n)
+        v = self.scales.values
+        if v is None or not len(r) or not b.n:
+            return r
+        ids = np.minimum(b.shape, len(r) - 1)
+        return np.concatenate([r, v * r[ids]])
+
     def need_shapes(self):
         """Raise PecletArgumentError when no shape is registered."""
         if not self.shapes:
@@ -144,7 +157,14 @@ class World:
         b = self.bodies
         if np.isnan(b.inv_inertia).any():
             self.need_shapes()
-        return b.resolved_inv_inertia(self.radii() if self.shapes else None)
+        ii = b.resolved_inv_inertia(self.radii() if self.shapes else None)
+        if not np.all(np.isfinite(ii)):      # a default moment 2.5 inv_mass / r^2 overflowed
+            i = int(np.flatnonzero(~np.isfinite(ii).all(axis=1))[0])
+            raise PecletArgumentError("inv_mass", "an inverse mass whose default inverse moment "
+                                      "2.5 inv_mass / r^2 is finite (or set_inv_inertia)",
+                                      float(b.inv_mass[i]), f"body {i}, bounding radius "
+                                      f"{float(self.radii()[i]):g}")
+        return ii
 
     def loaded(self):
         """(N,) bool: bodies with a non-zero external force or torque (None: no loads)."""
@@ -184,24 +204,48 @@ class World:
         return active
 
     def resolve_dt(self, dt):
-        """The step's dt: the argument, else the world's default; finite and > 0."""
+        """The step's dt: the argument, else the world's default; in [1e-100, 1e100]."""
         if dt is None:
             if self.dt is None:
                 raise PecletArgumentError("dt", "given, or set with set_dt(dt) before",
                                           None, "no time step")
             dt = self.dt
-        return check_float("dt", dt, 0.0, lo_open=True)
+        return self.checked_dt(dt)
+
+    @staticmethod
+    def checked_dt(dt):
+        """``dt`` checked: a finite time step in [MIN_DT, MAX_DT] = [1e-100, 1e100]."""
+        v = check_float("dt", dt, 0.0, lo_open=True)
+        if not MIN_DT <= v <= MAX_DT:
+            raise PecletArgumentError("dt", f"a finite number in [{MIN_DT:g}, {MAX_DT:g}] (a "
+                                      "time step: gaps over dt and speeds times dt must stay "
+                                      "float64 numbers)", dt)
+        return v
 
     def guard_limits(self):
-        """(radii, speed bound) of the guards: fixed within a step (the committed positions)."""
+        """(radii, speed bound) of the guards: fixed within a step (the committed positions).
+        A moving wall whose surface speed at a body exceeds the bound is refused here, before
+        the step's work (:meth:`peclet.dem.wallmotion.WallMotion.check_speeds`)."""
         radii = self.radii()
-        return radii, speed_bound(self.domain, self.bodies.pos, radii)
+        bound = speed_bound(self.domain, self.bodies.pos, radii)
+        if self.wall_motion.moving():
+            self.wall_motion.check_speeds(self.bodies.pos, radii, bound)
+        return radii, bound
 
-    def guard(self, x, q, v, w, limits=None):
+    def guard(self, x, q, v, w, limits=None, cause=""):
         """Raise StepError when a working state is non-finite or runs away (``limits``:
-        :meth:`guard_limits` when the caller has them; they do not change in a step)."""
+        :meth:`guard_limits` when the caller has them; they do not change in a step;
+        ``cause``: the user's inputs the stage applied, named in the message)."""
         check_state(x, q, v, w, *(self.guard_limits() if limits is None else limits),
-                    self.step_count + 1)
+                    self.step_count + 1, cause)
+
+    def load_cause(self, dt):
+        """The user's inputs the prediction applies (gravity and loads times ``dt``), as text
+        for a StepError raised right after it."""
+        text = f"after the gravity {self.gravity.tolist()} (set_gravity) times dt = {dt:g}"
+        if self.ext_force is not None or self.ext_torque is not None:
+            text += " and the external forces / torques (set_external_forces / _torques)"
+        return text + " were applied"
 
     # ------------------------------------------------------------------ detection
     def margins(self, vel, omega, dt, pos=None, radii=None, moving=None):

@@ -29,13 +29,21 @@ import numpy as np
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError, check_float
 
-__all__ = ["Container", "parse_container", "CONTAINER_FORMS", "MIN_WIDTH"]
+__all__ = ["Container", "parse_container", "CONTAINER_FORMS", "MIN_WIDTH", "MAX_WIDTH",
+           "MAX_DROP"]
 
 CONTAINER_FORMS = "'box:L', 'column:N', 'walled:Lx,Lz' (in element diameters), a Container " \
                   "or a (builder, root) fluid-region tree"
 
 #: The narrowest column diameter / box side accepted, in element diameters.
 MIN_WIDTH = 1.5
+#: The widest (issue 45, extreme numbers): the count cap (100 000) and the film rule (at least
+#: one element per D^2 of cross-section) already keep a runnable box or column below ~320 D;
+#: beyond 1e4 D its areas and start clouds only overflow.
+MAX_WIDTH = 1e4
+#: The largest rain drop height (D) and insertion speed (D / time): a drop of 1e4 D already
+#: falls for ~2e4 steps of every batch; beyond, the start cloud leaves the DEM's lengths.
+MAX_DROP = 1e4
 
 #: Clearance (in D) between a column's or walled box's wall and the analysis period.
 _MARGIN = 1.0
@@ -57,19 +65,19 @@ class Container:
     # ---------------------------------------------------------------- construction
     @classmethod
     def box(cls, L):
-        """The page's periodic box of side L (in D)."""
-        return cls("box", (check_float("container", L, MIN_WIDTH),))
+        """The page's periodic box of side L (in D, in [1.5, 1e4])."""
+        return cls("box", (check_float("container", L, MIN_WIDTH, MAX_WIDTH),))
 
     @classmethod
     def column(cls, n):
-        """A cylindrical column of diameter N D with a floor (N >= 1.5)."""
-        return cls("column", (check_float("container", n, MIN_WIDTH),))
+        """A cylindrical column of diameter N D with a floor (N in [1.5, 1e4])."""
+        return cls("column", (check_float("container", n, MIN_WIDTH, MAX_WIDTH),))
 
     @classmethod
     def walled(cls, lx, lz):
-        """A box with four side walls and a floor, interior Lx x Lz (in D, each >= 1.5)."""
-        return cls("walled", (check_float("container", lx, MIN_WIDTH),
-                              check_float("container", lz, MIN_WIDTH)))
+        """A box with four side walls and a floor, interior Lx x Lz (in D, each in [1.5, 1e4])."""
+        return cls("walled", (check_float("container", lx, MIN_WIDTH, MAX_WIDTH),
+                              check_float("container", lz, MIN_WIDTH, MAX_WIDTH)))
 
     @classmethod
     def from_tree(cls, builder, root):
@@ -390,5 +398,5 @@ def parse_container(value):
     try:
         return make(*nums)
     except PecletArgumentError:
-        raise PecletArgumentError("container", f"{kind} sizes >= {MIN_WIDTH} element diameters"
-                                  " (finite)", value) from None
+        raise PecletArgumentError("container", f"{kind} sizes in [{MIN_WIDTH}, "
+                                  f"{MAX_WIDTH:g}] element diameters (finite)", value) from None

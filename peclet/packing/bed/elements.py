@@ -388,6 +388,46 @@ PARAMS = {
 }
 
 
+#: Every length parameter of a library element (in the element's unit, whose defaults make
+#: D = 1) lies in [MIN_ELEMENT_LENGTH, MAX_ELEMENT_LENGTH], a zero where one is allowed
+#: (``window_y``) aside: beyond, the element's volume and moments (D^3, D^5) and the bed's
+#: areas in D^2 leave float64 or the DEM's lengths (:mod:`peclet.dem.limits`).
+MIN_ELEMENT_LENGTH, MAX_ELEMENT_LENGTH = 1e-6, 1e6
+#: ... and within this factor of the element's diameter D (either way): a wall 1e-3 D thin
+#: already needs ~1e6 shell probes (they follow the thinnest wall), and a length 1e3 D makes
+#: a rod or plate no container in D holds.
+MAX_ELEMENT_ASPECT = 1e3
+
+
+def _check_extents(kind, params, arg, shown):
+    """Refuse (PecletArgumentError naming ``arg``) a length parameter of ``kind`` (``params``
+    the given ones, defaults for the rest) outside [MIN_ELEMENT_LENGTH, MAX_ELEMENT_LENGTH] or
+    farther than MAX_ELEMENT_ASPECT from the diameter D (twice the first parameter)."""
+    from peclet.core.validation import PecletArgumentError
+
+    ctx = dict(element_defaults(kind), **params)
+    first = PARAMS[kind][0].name
+    d = 2.0 * float(ctx[first])
+    for p in PARAMS[kind]:
+        if p.kind == "int":
+            continue
+        vals = ctx[p.name] if p.kind == "triple" else (ctx[p.name],)
+        for j, v in enumerate(vals):
+            v = float(v)
+            label = p.name if p.kind != "triple" else f"{p.name}[{j}]"
+            if v == 0.0:
+                continue
+            if not MIN_ELEMENT_LENGTH <= v <= MAX_ELEMENT_LENGTH:
+                raise PecletArgumentError(
+                    arg, f"{kind} with every length in [{MIN_ELEMENT_LENGTH:g}, "
+                    f"{MAX_ELEMENT_LENGTH:g}] (the element's unit, D = 1 by default)", shown,
+                    f"{label} = {v:g}")
+            if p.name != first and not d / MAX_ELEMENT_ASPECT <= v <= d * MAX_ELEMENT_ASPECT:
+                raise PecletArgumentError(
+                    arg, f"{kind} with every length within a factor {MAX_ELEMENT_ASPECT:g} of "
+                    f"its diameter D = 2 {first} = {d:g}", shown, f"{label} = {v:g}")
+
+
 def element_defaults(kind):
     """The library element ``kind``'s default parameters (name -> value)."""
     import inspect
@@ -509,6 +549,7 @@ def parse_element(value, arg="element"):
         if isinstance(v, bool):
             check_param(kind, k, v, {}, arg, value)
     params = {k: check_param(kind, k, raw[k], loose, arg, value) for k in raw}
+    _check_extents(kind, params, arg, value)
     try:
         ELEMENTS[kind](**params)
     except ValueError as exc:

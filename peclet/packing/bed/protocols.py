@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 
 from peclet.core.validation import PecletArgumentError, check_float, check_int
+from peclet.packing.bed.containers import MAX_DROP
 
 __all__ = ["Protocol", "Phase", "PROTOCOLS", "PageProtocol", "RainProtocol", "RunState", "Body",
            "start_cloud", "drive", "parse_protocol", "new_simulation", "insert_bodies",
@@ -349,8 +350,8 @@ class PageProtocol(Protocol):
         return self.quench_steps > 0 and st.step == self.total_steps - self.quench_steps
 
     def now(self, st):
-        """A tap's kick where a tap starts (one per tap starting at this step); the quench
-        damps throughout its steps."""
+        """A tap's kick where a tap starts (one per tap starting at this step); the quench damps
+        throughout its steps."""
         kicks = sum(1 for _, first, _, kick, _ in self._phases() if kick and first == st.step)
         for label, first, n, _, damp in self._phases():
             if first <= st.step < first + n:
@@ -405,7 +406,7 @@ class RainProtocol(Protocol):
     def __post_init__(self):
         _check_fields(self, ("batch", "insert_every", "attempts", "calm_steps", "settle_steps",
                              "taps", "tap_steps", "quench_steps"),
-                      (("drop", 0.0, math.inf, False), ("speed", 0.0, math.inf, False),
+                      (("drop", 0.0, MAX_DROP, False), ("speed", 0.0, MAX_DROP, False),
                        ("rest_speed", 0.0, math.inf, True), ("spacing", 0.0, math.inf, False),
                        ("ke_tol", 0.0, math.inf, True), ("tap_speed", 0.0, math.inf, False),
                        ("damp", 0.0, 1.0, True), ("dt", 0.0, math.inf, True)))
@@ -444,8 +445,8 @@ class RainProtocol(Protocol):
         return e, np.zeros((0, 4)), e, None
 
     def top_bound(self, ctx):
-        """A height no insertion reaches: the bed's top is at most the count's elements
-        stacked one on another."""
+        """A height no insertion reaches: the bed's top is at most the count's elements stacked
+        one on another."""
         b = ctx["body"]
         return ctx["container"].floor_y + ctx["count"] * 2.0 * b.r_b + (self.drop + 4.0) * b.d
 
@@ -555,8 +556,7 @@ def start_cloud(n, container, rng, y0=1.2, gap=1.55, dy=0.15, lookback=14, clear
     that would rise above it is refused (PecletArgumentError naming "count") instead of
     climbing forever. In an open container the loop is bounded: each rejection raises y by
     ``dy``, and after ``gap / dy`` of them in a row y is ``gap`` above every earlier body, so
-    the cloud is at most ``n (gap + dy)`` tall.
-    """
+    the cloud is at most ``n (gap + dy)`` tall."""
     pos, y = [], float(y0)
     while len(pos) < int(n):
         if y > y_max:

@@ -174,8 +174,8 @@ def _speed(arg, value, c):
         return check_float(arg, spec.froude, 0.0, 100.0, True)
     rpm = check_float(c.name("rpm"), spec.rpm, 0.0, 1e5, True)
     fr = froude_of_rpm(rpm, c.value("radius"), grain)
-    if not fr <= 100.0:
-        raise PecletArgumentError(c.name("rpm"), "a speed with Froude number <= 100", rpm,
+    if not 0.0 < fr <= 100.0:          # 0: omega^2 R underflowed (rpm ~ 1e-160 and below)
+        raise PecletArgumentError(c.name("rpm"), "a speed with Froude number in (0, 100]", rpm,
                                   f"Fr = {fr:.4g} for R = {c.value('radius'):g} D of "
                                   f"{grain:g} mm")
     return fr

@@ -47,6 +47,8 @@ def check_work(phases, grains, name, value):
     instead of a progress bar frozen at step 1."""
     steps = sum(int(ph.steps) for ph in phases)
     seconds = float(steps) * max(int(grains), 1) * GRAIN_STEP_SECONDS
+    if seconds == float("inf"):       # steps * grains overflowed (a speed of 1e-300): the
+        seconds = float(steps) * GRAIN_STEP_SECONDS * max(int(grains), 1)   # other order
     if seconds > MAX_RUN_SECONDS:
         raise PecletArgumentError(
             name, "a value whose run finishes in at most "
