@@ -21,7 +21,6 @@ LARGE_MODULES = {
     "peclet/dem/solver.py": 673,
     "peclet/packing/experiments/drum.py": 778,
     "peclet/packing/output/export.py": 677,
-    "peclet/packing/bed/protocols.py": 636,
 }
 LONG_FUNCTIONS = {
     "peclet/core/geom/kernels.py:leaf_eval": 180,
