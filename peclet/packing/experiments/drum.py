@@ -101,7 +101,7 @@ from peclet.core.validation import PecletArgumentError, check_float
 from ..bed import checkpoint as ckpt
 from .regimes import (MELLMANN, MIN_GRAINS, SURFACE_POINTS, angle_stats,  # noqa: F401 (API)
                       classify, expected_regimes, measure)
-from .series import Phase, check_work, grains_mesh, run_phases, write_series
+from .series import Phase, check_work, grains_mesh, relocate, reopen, run_phases, write_series
 
 __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "MIN_GRAINS", "G",
            "froude_of_rpm",
@@ -465,37 +465,22 @@ def resume_drum(path, out=None, progress=True, figures=True, threads=None, previ
     parameters), the error naming ``names[field]``. ``checkpoint_every`` None: as the run had
     it. The other arguments as :func:`run_drum`'s. PecletArgumentError naming ``path`` (or
     ``names["resume"]``) if it is not a drum run's checkpoint."""
-    nm = lambda f: (names or {}).get(f, f)  # noqa: E731
-    cdir = checkpoint_dir(path, nm("resume"))
-    saved, st, arrays, sim_path = read_checkpoint(cdir, nm("resume"))
-    if given:
-        same_spec(saved, given, names)
-    if threads is not None:
-        from ..bed.threads import set_threads
-        set_threads(threads)
-    every = st["checkpoint_every"] if checkpoint_every is None else checkpoint_every
-    if out is None:
-        out = os.path.dirname(cdir)
-    every, max_steps = ckpt.check_every(out, every, max_steps)
+    r = reopen(path, out, given, names, threads, checkpoint_every, max_steps,
+               checkpoint_dir, read_checkpoint, same_spec)
+    saved, st, arrays, out, every, max_steps = (r.spec, r.state, r.arrays, r.out, r.every,
+                                                r.max_steps)
     from peclet.dem import Simulation
 
     t0 = time.perf_counter()
     drum = Drum(saved)
-    drum.sim = Simulation.load(sim_path)
+    drum.sim = Simulation.load(r.sim_path)
     drum.wall = int(st["wall"])
     drum.settle_steps = int(st["settle_steps"])
     drum.radii = arrays["radii"]
     st["frames"] = _frames_of(arrays, "frames")
     st["snaps"] = _frames_of(arrays, "snaps")
-    os.makedirs(out, exist_ok=True)
-    if os.path.abspath(out) != os.path.dirname(cdir):
-        # outputs elsewhere: the checkpoint goes on there (the one read is left as it is)
-        clear_outputs(out, previous)
-        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
-        if every is not None:
-            _checkpoint_write(cdir, saved, drum, st)
-    else:
-        clear_outputs(out, tuple(f for f in previous if f != CHECKPOINT))
+    cdir = relocate(out, r.cdir, previous, every,
+                    lambda c: _checkpoint_write(c, saved, drum, st))
     previous = ()
     return _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
                  keep_checkpoint, t0 - st["seconds"])

@@ -20,7 +20,8 @@ import numpy as np
 from peclet.core.files import atomic_directory, atomic_write, remove_parts
 from peclet.core.validation import PecletArgumentError
 
-__all__ = ["Phase", "run_phases", "write_series", "grains_mesh", "check_work",
+__all__ = ["Phase", "run_phases", "write_series", "grains_mesh", "check_work", "reopen",
+           "relocate", "Reopened",
            "GRAIN_STEP_SECONDS", "MAX_RUN_SECONDS"]
 
 #: The cost of one grain through one step on one core, in seconds, used to estimate a run's
@@ -144,3 +145,58 @@ def grains_mesh(X, point_data, outlines=()):
     if lines:
         cells.append(("line", np.array(lines)))
     return meshio.Mesh(np.vstack(pts), cells, point_data=data)
+
+
+class Reopened(NamedTuple):
+    """What :func:`reopen` read of a turning-wall run's checkpoint: the run's checked
+    ``spec``, its loop ``state`` and ``arrays``, the path of its ``sim.npz``, the checkpoint
+    directory ``cdir``, and the ``out``, ``every`` and ``max_steps`` the resumed run uses."""
+    spec: object
+    state: dict
+    arrays: dict
+    sim_path: str
+    cdir: str
+    out: str
+    every: object
+    max_steps: object
+
+
+def reopen(path, out, given, names, threads, checkpoint_every, max_steps, locate, read, same):
+    """The start every resume of a turning-wall run shares (the drum's, the stirred
+    column's): find its checkpoint under ``path`` (``locate``), ``read`` it, refuse ``given``
+    fields that differ from the run's (``same``, errors naming ``names[field]``), set the
+    ``threads``, and settle ``out`` (default: the run's own directory), the checkpoint
+    interval (default: the run's) and ``max_steps``. Returns a :class:`Reopened`."""
+    from ..bed import checkpoint as ckpt
+    resume = (names or {}).get("resume", "resume")
+    cdir = locate(path, resume)
+    saved, st, arrays, sim_path = read(cdir, resume)
+    if given:
+        same(saved, given, names)
+    if threads is not None:
+        from ..bed.threads import set_threads
+        set_threads(threads)
+    every = st["checkpoint_every"] if checkpoint_every is None else checkpoint_every
+    if out is None:
+        out = os.path.dirname(cdir)
+    every, max_steps = ckpt.check_every(out, every, max_steps)
+    return Reopened(saved, st, arrays, sim_path, cdir, out, every, max_steps)
+
+
+def relocate(out, cdir, previous, every, write):
+    """Make ``out`` ready for a resumed run and return the checkpoint directory it goes on
+    in: with outputs elsewhere, the earlier outputs there (``previous``) are cleared and a
+    new checkpoint is started in ``out`` (``write(cdir)``; the one read is left as it is);
+    in the run's own directory everything but the checkpoint is cleared."""
+    from peclet.core.outputs import clear_outputs
+
+    from ..bed.checkpoint import CHECKPOINT
+    os.makedirs(out, exist_ok=True)
+    if os.path.abspath(out) != os.path.dirname(cdir):
+        clear_outputs(out, previous)
+        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
+        if every is not None:
+            write(cdir)
+    else:
+        clear_outputs(out, tuple(f for f in previous if f != CHECKPOINT))
+    return cdir

@@ -63,7 +63,7 @@ from peclet.core.spec import Float, Int, Spec, field
 from peclet.core.validation import PecletArgumentError
 
 from ..bed import checkpoint as ckpt
-from .series import Phase, check_work, grains_mesh, run_phases, write_series
+from .series import Phase, check_work, grains_mesh, relocate, reopen, run_phases, write_series
 
 __all__ = ["StirSpec", "StirredColumn", "lacey", "run_stir", "resume_stir", "checkpoint_dir",
            "read_checkpoint", "same_spec", "OUTPUTS", "OUTPUT_DIRS", "PAGE_COUNT"]
@@ -339,39 +339,22 @@ def resume_stir(path, out=None, progress=True, figures=True, threads=None, previ
     :class:`StirSpec` fields the caller states: one that differs from the run's is refused,
     the error naming ``names[field]``. ``checkpoint_every`` None: as the run had it. The other
     arguments as :func:`run_stir`'s."""
-    from peclet.core.outputs import clear_outputs
     from peclet.dem import Simulation
 
-    nm = lambda f: (names or {}).get(f, f)  # noqa: E731
-    cdir = checkpoint_dir(path, nm("resume"))
-    saved, st, arrays, sim_path = read_checkpoint(cdir, nm("resume"))
-    if given:
-        same_spec(saved, given, names)
-    if threads is not None:
-        from ..bed.threads import set_threads
-        set_threads(threads)
-    every = st["checkpoint_every"] if checkpoint_every is None else checkpoint_every
-    if out is None:
-        out = os.path.dirname(cdir)
-    every, max_steps = ckpt.check_every(out, every, max_steps)
+    r = reopen(path, out, given, names, threads, checkpoint_every, max_steps,
+               checkpoint_dir, read_checkpoint, same_spec)
+    saved, st, arrays, out, every, max_steps = (r.spec, r.state, r.arrays, r.out, r.every,
+                                                r.max_steps)
     t0 = time.perf_counter()
     col = StirredColumn(saved)
-    col.sim = Simulation.load(sim_path)
+    col.sim = Simulation.load(r.sim_path)
     col.column_wall, col.impeller_wall = int(st["column_wall"]), int(st["impeller_wall"])
     if "species" in arrays:
         col.species, col.bed_top = arrays["species"], float(st["bed_top"])
     st["frames"] = [dict(t=float(t), X=X, V=V, angle=float(a)) for t, X, V, a in
                     zip(*(arrays[f"frames_{k}"] for k in ("t", "X", "V", "angle")))] \
         if "frames_t" in arrays else []
-    os.makedirs(out, exist_ok=True)
-    if os.path.abspath(out) != os.path.dirname(cdir):
-        # outputs elsewhere: the checkpoint goes on there (the one read is left as it is)
-        clear_outputs(out, previous)
-        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
-        if every is not None:
-            _checkpoint_write(cdir, col, st)
-    else:
-        clear_outputs(out, tuple(f for f in previous if f != CHECKPOINT))
+    cdir = relocate(out, r.cdir, previous, every, lambda c: _checkpoint_write(c, col, st))
     return _stir(col, st, out, progress, figures, (), every, max_steps, cdir,
                  keep_checkpoint, t0 - st["seconds"])
 
