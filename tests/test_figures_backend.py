@@ -13,13 +13,13 @@ import matplotlib
 matplotlib.use("svg")                      # the user's choice, not Agg
 before = matplotlib.get_backend()
 from peclet.core.figures import new_figure, save_png, subplots
-from peclet.packing.experiments import drum, grow, stir
+from peclet.packing.experiments import drum_output, grow, stir
 from peclet.ensemble import summary
 d = tempfile.mkdtemp()
 samples = [dict(phase=p, revolutions=0.1 * i, angle=30.0 + i) for i, p in
            enumerate(["warmup", "measure", "measure"])]
-drum._angle_figure(os.path.join(d, "angle.png"), samples,
-                   dict(angle=dict(mean=31.5), froude=0.01, regime="rolling"))
+drum_output._angle_figure(os.path.join(d, "angle.png"), samples,
+                          dict(angle=dict(mean=31.5), froude=0.01, regime="rolling"))
 stir._lacey_figure(os.path.join(d, "lacey.png"),
                    dict(samples=[dict(revolutions=0.0, lacey=0.0),
                                  dict(revolutions=1.0, lacey=0.8)], grains=10,

@@ -88,20 +88,21 @@ import math
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 
 import numpy as np
 
 from peclet.core import geom
-from peclet.core.files import write_json
-from peclet.core.outputs import clear_outputs
-from peclet.core.spec import Choice, Custom, Float, Int, Spec, Text, field
-from peclet.core.validation import PecletArgumentError, check_float
+from peclet.core.validation import PecletArgumentError
 
 from ..bed import checkpoint as ckpt
 from .regimes import (MELLMANN, MIN_GRAINS, SURFACE_POINTS, angle_stats,  # noqa: F401 (API)
                       classify, expected_regimes, measure)
-from .series import Phase, check_work, grains_mesh, relocate, reopen, run_phases, write_series
+from .drum_output import write_outputs
+from .drum_spec import (ENDS, RIB_HALF_WIDTH, RIB_HEIGHT, RIB_SPACING,  # noqa: F401 (API)
+                        DrumSpec, froude_of_rpm, rpm_of_froude)
+from .series import (Phase, check_work, fresh_checkpoint, relocate, reopen,
+                     run_phases)
 
 __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "MIN_GRAINS", "G",
            "froude_of_rpm",
@@ -111,13 +112,6 @@ __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "MIN_GRAINS", 
 
 from .regimes import G  # noqa: E402 (the one value, re-exported)
 
-#: Wall ribs (``ribs`` > 0): boxes along the axis centred on the wall, protruding
-#: RIB_HEIGHT D into the drum, 2 RIB_HALF_WIDTH D wide (a rough wall: a bed of spheres
-#: otherwise rolls on a smooth wall like a ball bearing instead of turning with it).
-RIB_HEIGHT = 0.25
-RIB_HALF_WIDTH = 0.1
-#: Default rib spacing along the wall (D): ``ribs`` None gives round(2 pi R / RIB_SPACING).
-RIB_SPACING = 1.25
 
 #: Spin-up Froude number (a rolling bed).
 SPINUP_FROUDE = 1e-2
@@ -131,73 +125,6 @@ POINTER = ckpt.POINTER
 _KIND = "peclet drum checkpoint"
 _WHAT = "a drum run's output directory or its checkpoint/ (written by peclet drum)"
 
-ENDS = ("caps", "periodic")
-
-
-def froude_of_rpm(rpm, radius_d, grain_mm):
-    """Fr = omega^2 R / g of a drum of ``radius_d`` grain diameters of ``grain_mm`` mm."""
-    om = 2.0 * math.pi * rpm / 60.0
-    return om * om * radius_d * grain_mm * 1e-3 / G
-
-
-def rpm_of_froude(fr, radius_d, grain_mm):
-    return 60.0 / (2.0 * math.pi) * math.sqrt(fr * G / (radius_d * grain_mm * 1e-3))
-
-
-def _speed(arg, value, c):
-    """``froude`` or ``rpm`` (exactly one), as the Froude number (<= 100)."""
-    spec = c.spec
-    if (spec.froude is None) == (spec.rpm is None):
-        raise PecletArgumentError(c.name("froude"), f"given, or {c.name('rpm')} (exactly one)",
-                                  (spec.froude, spec.rpm))
-    grain = c.value("grain_mm")
-    if spec.froude is not None:
-        return check_float(arg, spec.froude, 0.0, 100.0, True)
-    rpm = check_float(c.name("rpm"), spec.rpm, 0.0, 1e5, True)
-    fr = froude_of_rpm(rpm, c.value("radius"), grain)
-    if not 0.0 < fr <= 100.0:          # 0: omega^2 R underflowed (rpm ~ 1e-160 and below)
-        raise PecletArgumentError(c.name("rpm"), "a speed with Froude number in (0, 100]", rpm,
-                                  f"Fr = {fr:.4g} for R = {c.value('radius'):g} D of "
-                                  f"{grain:g} mm")
-    return fr
-
-
-@dataclass(frozen=True)
-class DrumSpec(Spec):
-    """A drum run (see the module notes). ``froude`` or ``rpm`` (exactly one); ``wall_mu`` and
-    ``wall_e`` default to ``mu`` and ``e``; ``dt`` None: 4e-3 (spheres) or 2e-3 (elements),
-    at most 0.05 D / (omega R); ``polydispersity`` p (spheres only): radii of 0.5 (1 - p),
-    0.5 and 0.5 (1 + p) D in equal shares. :meth:`checked` (from :class:`~peclet.core.spec.
-    Spec`) checks every field as declared here (PecletArgumentError naming ``names[field]``,
-    e.g. the command line's flag) and resolves the defaults (``rpm`` to ``froude``)."""
-
-    element: str = field("sphere", Text("'sphere' or a library element name"))
-    radius: float = field(10.0, Float(3.0, 200.0))
-    length: float = field(4.0, Float(1.0, 200.0))
-    ends: str = field("caps", Choice(ENDS))
-    fill: float = field(0.35, Float(0.0, 0.8, lo_open=True))
-    froude: float | None = field(None, Custom(_speed))
-    rpm: float | None = field(None, Custom(lambda arg, value, c: None))   # in froude now
-    grain_mm: float = field(3.0, Float(0.0, 1e4, lo_open=True))
-    mu: float = field(0.5, Float(0.0, 10.0))
-    e: float = field(0.3, Float(0.0, 1.0))
-    wall_mu: float | None = field(None, Float(0.0, 10.0, if_none=lambda c: c.value("mu")))
-    wall_e: float | None = field(None, Float(0.0, 1.0, if_none=lambda c: c.value("e")))
-    polydispersity: float = field(0.1, Float(0.0, 0.5, hi_open=True))
-    revolutions: float = field(2.0, Float(0.0, 100.0, lo_open=True))
-    warmup: float = field(1.0, Float(0.0, 100.0))
-    spinup: float = field(0.0, Float(0.0, 3600.0))
-    dt: float | None = field(None, Float(0.0, 0.02, lo_open=True, if_none=None))
-    seed: int = field(1, Int(0, 2 ** 63 - 1))
-    frames: int = field(24, Int(0, 10_000))
-    snapshots: int = field(4, Int(1, 12))
-    ribs: int | None = field(None, Int(0, 720, if_none=lambda c: int(round(
-        2.0 * math.pi * c.value("radius") / RIB_SPACING))))
-
-    @property
-    def omega(self):
-        """Angular speed (rad/time) of the checked spec."""
-        return math.sqrt(self.froude * G / self.radius)
 
 
 def _grains(spec):
@@ -434,16 +361,7 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
     drum = Drum(spec)
     drum.check_room()
     t0 = time.perf_counter()
-    cdir = None
-    if every is not None:
-        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
-        if os.path.lexists(cdir) and CHECKPOINT not in previous:
-            raise PecletArgumentError("out", "a directory without a drum checkpoint (finish "
-                                      "that run with resume_drum, or name 'checkpoint' in "
-                                      "previous to replace it)", out)
-        os.makedirs(out, exist_ok=True)
-        clear_outputs(out, previous)
-        previous = ()
+    cdir, previous = fresh_checkpoint(out, previous, every, "drum")
     drum.build()
     st = dict(k=0, t=0.0, angle=0.0, samples=[], frames=[], snaps=[], seconds=0.0,
               run=ckpt.new_run(), checkpoint_every=every)
@@ -570,7 +488,7 @@ def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
                                               "airborne", "flowing", "corotating",
                                               "coverage", "high")} for s in samples])
     if out is not None:
-        _write(out, res, drum, frames, snaps, samples, figures, previous)
+        write_outputs(out, res, drum, frames, snaps, samples, figures, previous)
         if cdir is not None and not keep_checkpoint:
             ckpt.remove(cdir, own=())
     return res
@@ -670,94 +588,3 @@ def _frame(drum, k, t):
     sim = drum.sim
     return dict(step=k, t=t, X=sim.get_positions(), V=sim.get_velocities(),
                 shape=sim.get_shape_ids(), turned=drum.angle)
-
-
-def _write(out, res, drum, frames, snaps, samples, figures, previous):
-    os.makedirs(out, exist_ok=True)
-    clear_outputs(out, previous)
-    files = ["results.json"]
-    if frames:
-        _write_series(out, drum, frames)
-        files += ["drum.pvd", "frames/"]
-    if figures:
-        _snapshot_figure(os.path.join(out, "snapshots.png"), drum, snaps, res)
-        _angle_figure(os.path.join(out, "angle.png"), samples, res)
-        files += ["snapshots.png", "angle.png"]
-    res["files"] = files
-    write_json(os.path.join(out, "results.json"), res)
-
-
-def _write_series(out, drum, frames):
-    R = drum.spec.radius * drum.d
-    L = drum.spec.length * drum.d
-    om = drum.omega
-
-    def mesh_of(f):
-        X, V = f["X"], f["V"]
-        vr = V - om * np.column_stack([-X[:, 1], X[:, 0], np.zeros(len(X))])
-        th = np.linspace(0, 2 * np.pi, 65)[:-1] + f["turned"]
-        rims = [np.column_stack([R * np.cos(th), R * np.sin(th), np.full(64, z)])
-                for z in (-0.5 * L, 0.5 * L)]
-        return grains_mesh(X, {"radius": drum.radii, "velocity": V,
-                               "speed": np.sqrt((V * V).sum(1)),
-                               "relative_speed": np.sqrt((vr * vr).sum(1)),
-                               "shape_id": np.asarray(f["shape"], np.int32)}, rims)
-
-    write_series(out, "drum", frames, mesh_of)
-
-
-def _snapshot_figure(path, drum, snaps, res):
-    from peclet.core.figures import save_png, subplots
-    from matplotlib.collections import PatchCollection
-    from matplotlib.patches import Circle
-
-    R = drum.spec.radius * drum.d
-    vmax = max(drum.omega * R, 0.5 * math.sqrt(G * drum.d) * drum.d)
-    n = max(1, len(snaps))
-    fig, axes = subplots(1, n, figsize=(3.2 * n, 3.4), squeeze=False)
-    for ax, f in zip(axes[0], snaps):
-        X, V = f["X"], f["V"]
-        order = np.argsort(X[:, 2])
-        sp = np.sqrt((V * V).sum(1))[order]
-        pc = PatchCollection([Circle((x, y), r) for (x, y), r in
-                              zip(X[order, :2], drum.radii[order])], cmap="viridis")
-        pc.set_array(sp)
-        pc.set_clim(0, vmax)
-        ax.add_collection(pc)
-        ax.add_patch(Circle((0, 0), R, fill=False, lw=1.2, color="k"))
-        a = f["turned"]
-        ax.plot([0, R * math.cos(a)], [0, R * math.sin(a)], "k:", lw=0.6)
-        s = measure(X, V, drum.radii, R, drum.omega, drum.d)
-        if np.isfinite(s["slope"]):
-            xx = np.linspace(-R, R, 2)
-            ax.plot(xx, s["slope"] * xx + s["intercept"], "r-", lw=1)
-        ax.set_xlim(-1.05 * R, 1.05 * R)
-        ax.set_ylim(-1.05 * R, 1.05 * R)
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ang = "" if not np.isfinite(s["angle"]) else f", {s['angle']:.1f}°"
-        ax.set_title(f"rev {f['turned'] / (2 * math.pi):.2f}{ang}", fontsize=9)
-    fig.suptitle(f"{res['element']}, Fr = {res['froude']:.3g}, mu = {drum.spec.mu:g}: "
-                 f"{res['regime']}", fontsize=10)
-    fig.colorbar(pc, ax=list(axes[0]), shrink=0.8, label="speed (D/time)")
-    save_png(fig, path, dpi=110)
-
-
-def _angle_figure(path, samples, res):
-    from peclet.core.figures import save_png, subplots
-
-    fig, ax = subplots(figsize=(6, 3.2))
-    for ph, c in (("warmup", "0.6"), ("measure", "C0")):
-        s = [x for x in samples if x["phase"] == ph]
-        ax.plot([x["revolutions"] for x in s], [x["angle"] for x in s], ".", ms=2, color=c,
-                label=ph)
-    m = res["angle"]["mean"]
-    if np.isfinite(m):
-        ax.axhline(m, color="C3", lw=1, label=f"mean {m:.1f}°")
-    ax.set_xlabel("revolutions")
-    ax.set_ylabel("surface angle (degrees)")
-    ax.set_title(f"Fr = {res['froude']:.3g}: {res['regime']}", fontsize=10)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    save_png(fig, path, dpi=110)

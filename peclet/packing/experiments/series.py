@@ -21,7 +21,7 @@ from peclet.core.files import atomic_directory, atomic_write, remove_parts
 from peclet.core.validation import PecletArgumentError
 
 __all__ = ["Phase", "run_phases", "write_series", "grains_mesh", "check_work", "reopen",
-           "relocate", "Reopened",
+           "relocate", "Reopened", "fresh_checkpoint",
            "GRAIN_STEP_SECONDS", "MAX_RUN_SECONDS"]
 
 #: The cost of one grain through one step on one core, in seconds, used to estimate a run's
@@ -200,3 +200,24 @@ def relocate(out, cdir, previous, every, write):
     else:
         clear_outputs(out, tuple(f for f in previous if f != CHECKPOINT))
     return cdir
+
+
+def fresh_checkpoint(out, previous, every, run):
+    """(checkpoint directory, outputs still to clear) of a new turning-wall run (``run`` the
+    run's name, "drum" or "stir") writing into ``out``: (None, ``previous``) without
+    checkpoints (``every`` None); else ``out/checkpoint``, after refusing an unfinished run's
+    checkpoint there (unless ``previous`` names it) and clearing the earlier outputs
+    ``previous`` (its checkpoint takes their place)."""
+    from peclet.core.outputs import clear_outputs
+
+    from ..bed.checkpoint import CHECKPOINT
+    if every is None:
+        return None, previous
+    cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
+    if os.path.lexists(cdir) and CHECKPOINT not in previous:
+        raise PecletArgumentError("out", f"a directory without a {run} checkpoint (finish "
+                                  f"that run with resume_{run}, or name 'checkpoint' in "
+                                  "previous to replace it)", out)
+    os.makedirs(out, exist_ok=True)
+    clear_outputs(out, previous)
+    return cdir, ()

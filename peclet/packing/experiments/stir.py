@@ -63,7 +63,8 @@ from peclet.core.spec import Float, Int, Spec, field
 from peclet.core.validation import PecletArgumentError
 
 from ..bed import checkpoint as ckpt
-from .series import Phase, check_work, grains_mesh, relocate, reopen, run_phases, write_series
+from .series import (Phase, check_work, fresh_checkpoint, grains_mesh, relocate, reopen,
+                     run_phases, write_series)
 
 __all__ = ["StirSpec", "StirredColumn", "lacey", "run_stir", "resume_stir", "checkpoint_dir",
            "read_checkpoint", "same_spec", "OUTPUTS", "OUTPUT_DIRS", "PAGE_COUNT"]
@@ -308,18 +309,7 @@ def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous
     every, max_steps = ckpt.check_every(out, checkpoint_every, max_steps)
     col = StirredColumn(spec)           # build() refuses a count the lattice cannot hold
     t0 = time.perf_counter()
-    cdir = None
-    if every is not None:
-        cdir = os.path.join(os.path.abspath(out), CHECKPOINT)
-        if os.path.lexists(cdir) and CHECKPOINT not in previous:
-            raise PecletArgumentError("out", "a directory without a stir checkpoint (finish "
-                                      "that run with resume_stir, or name 'checkpoint' in "
-                                      "previous to replace it)", out)
-        from peclet.core.outputs import clear_outputs
-
-        os.makedirs(out, exist_ok=True)
-        clear_outputs(out, previous)
-        previous = ()
+    cdir, previous = fresh_checkpoint(out, previous, every, "stir")
     col.build()
     st = dict(k=0, t=0.0, angle=0.0, samples=[], frames=[], seconds=0.0, run=ckpt.new_run(),
               checkpoint_every=every)
