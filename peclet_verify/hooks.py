@@ -36,3 +36,11 @@ def pytest_peclet_make_mass_backend(config):
     ``resolutions`` and ``order``; see :mod:`peclet_verify.mass.backend`), or None. Called
     once per session (per xdist worker) when ``--peclet-mass-backend`` is not given; without
     either, peclet's quadrature is certified."""
+
+
+@pytest.hookspec(firstresult=True)
+def pytest_peclet_make_impact_backend(config):
+    """Return the impact engine under certification (an object with ``impact(case)``,
+    ``model`` and ``capabilities``; see :mod:`peclet_verify.impact.backend`), or None. Called
+    once per session (per xdist worker) when ``--peclet-impact-backend`` is not given; without
+    either, peclet.dem's Hertz law is certified."""

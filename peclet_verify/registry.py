@@ -3,7 +3,8 @@ reads it at configure time, before the engine is imported.
 
 :data:`FAMILIES` holds one :class:`Family` record per family (``geometry``: Equation 1, sign
 and distance agreement; ``mass``: quadrature against the closed forms of the leaf table;
-``dem``: determinism, contact buffers; ``mechanics``: closed-form mechanics of any DEM engine):
+``dem``: determinism, contact buffers; ``mechanics``: closed-form mechanics of any DEM engine;
+``impact``: the Chung & Ooi single-contact benchmarks of any engine with a Hertz or linear law):
 the subpackage ``peclet_verify.<name>`` holding it, its pytest option, hook and fixture, its
 backend module and its suite module. The pytest plugin (:mod:`peclet_verify.plugin`,
 :mod:`peclet_verify.fixtures`) is driven by these records.
@@ -14,7 +15,7 @@ certificates derives from here: the report's lists and the names an xfails file 
 (:mod:`peclet_verify.report`), the titles the suites search under (each family's ``suite``,
 ``properties/``) and the figure labels the properties report (:func:`figure`). Scopes say what
 a certificate judges: ``suite`` an engine plugged in as a geometry backend, ``repo`` peclet
-itself, ``dem`` a DEM backend, ``mass`` a mass-property backend.
+itself, ``dem`` a DEM backend, ``mass`` a mass-property backend, ``impact`` an impact backend.
 """
 from __future__ import annotations
 
@@ -68,6 +69,11 @@ FAMILIES = (
            "peclet_dem_backend", "peclet_verify.mechanics.backend",
            "peclet_verify.mechanics.suite",
            "an object with run(scenario, threads) (default: peclet.dem)"),
+    Family("impact", "--peclet-impact-backend", "pytest_peclet_make_impact_backend",
+           "peclet_impact_backend", "peclet_verify.impact.backend",
+           "peclet_verify.impact.suite",
+           "an object with impact(case), model and capabilities (default: peclet.dem's "
+           "Hertz law)"),
 )
 FAMILY_NAMES = tuple(f.name for f in FAMILIES)
 
@@ -80,7 +86,7 @@ def family(name: str) -> Family:
     raise KeyError(f"no family {name!r}; registered: {', '.join(FAMILY_NAMES)}")
 
 
-SCOPES = ("suite", "repo", "dem", "mass")
+SCOPES = ("suite", "repo", "dem", "mass", "impact")
 
 #: Worst-figure label -> (direction, compare factor, compare floor). Direction "max": larger
 #: is worse; "min": smaller is worse. ``--peclet-compare`` fails a run when the figure's
@@ -158,7 +164,13 @@ CERTIFICATES = (
        "error / allowed"),
     _c("mass_closed_forms", "mass", "mass", "mass_properties",
        "mass properties (closed forms)", "error / allowed"),
-)
+) + tuple(
+    _c(f"chung_ooi_{n}", "impact", "impact", f"chung_ooi_{n}", f"Chung & Ooi {n}: {what}",
+       "|ratio - e|" if n == 3 else "rel error")
+    for n, what in ((1, "elastic sphere-sphere"), (2, "elastic sphere-plane"),
+                    (3, "restitution over e and speed"), (4, "oblique, constant speed"),
+                    (5, "oblique, constant normal speed"), (6, "spin on a plane"),
+                    (7, "two spinning spheres"), (8, "unequal spinning spheres")))
 
 _BY_KEY = {c.key: c for c in CERTIFICATES}
 _FIGURE_OF_PROP = {}

@@ -178,7 +178,8 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
     The active certification profile (:func:`active_settings`) applies unless ``settings``
     is given. On failure Hypothesis shrinks the input; the returned result carries the shrunk example (``describe(example)``)
     and its own counterexample text. Inputs for which the property does not apply (status
-    "n/a") count as examples but never fail. An "unavailable" result stops the search.
+    "n/a") count as examples but never fail. An "unavailable" or "not claimed" result stops
+    the search and is returned.
 
     ``examples`` counts the inputs checked up to and including the first failure; the runs
     Hypothesis makes after it (shrinking, replay) are in ``details["runs_after_failure"]``.
@@ -197,8 +198,8 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
 
     def run(example):
         res = check(example)
-        if res.status == UNAVAILABLE:
-            seen["unavailable"] = res
+        if res.status in (UNAVAILABLE, NOT_CLAIMED):    # the engine cannot or does not
+            seen["unavailable"] = res                     # claim it: stop, never fail
             return
         seen["calls"] += 1
         seen.setdefault("property", res.name)

@@ -364,7 +364,7 @@ def test_every_family_record_names_what_the_plugin_and_a_downstream_project_use(
 
     from peclet_verify import hooks, plugin, registry
     options = {flag for flag, _, _ in plugin._OPTIONS}
-    assert registry.FAMILY_NAMES == ("geometry", "mass", "dem", "mechanics")
+    assert registry.FAMILY_NAMES == ("geometry", "mass", "dem", "mechanics", "impact")
     for fam in registry.FAMILIES:
         assert fam.package == f"peclet_verify.{fam.name}"
         assert fam.option in options and callable(getattr(hooks, fam.hook))

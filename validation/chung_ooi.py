@@ -63,7 +63,6 @@ import sys
 import time
 
 import numpy as np
-from scipy.integrate import quad
 
 from peclet.core import geom
 from peclet.core.files import write_json
@@ -74,26 +73,12 @@ if ROOT not in sys.path:           # run as a script: the repository, for the pa
     sys.path.insert(0, ROOT)
 
 import validation as vargs  # noqa: E402  (the scripts' shared argument handling)
+# the benchmark's materials and closed forms are the impact certificate family's
+from peclet_verify.impact.cases import MATERIALS, SLIDE_MARGIN, TC_CONSTANT  # noqa: E402,F401
+from peclet_verify.impact.cases import hertz_elastic as hertz_analytic  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_JSON = os.path.join(HERE, "results", "chung_ooi.json")
-
-#: the Hertz contact-time constant 2 int_0^1 (1 - x^2.5)^-1/2 dx (dimensionless)
-_TC_INTEGRAL = 2.0 * quad(lambda x: 1.0 / math.sqrt(1.0 - x ** 2.5), 0.0, 1.0,
-                          limit=200)[0]
-#: t_c = C (m*^2 / (R* E*^2 v))^(1/5): C = _TC_INTEGRAL (15/16)^(2/5)
-TC_CONSTANT = _TC_INTEGRAL * (15.0 / 16.0) ** 0.4
-#: tests 4-8 score a row only where the incoming slip is this many times the sliding threshold
-SLIDE_MARGIN = 1.3
-
-MATERIALS = {
-    "glass": (4.8e10, 0.20, 2800.0), "limestone": (2.0e10, 0.25, 2500.0),
-    "aluminium_alloy_t2": (7.0e10, 0.30, 2699.0), "magnesium_alloy": (4.0e10, 0.35, 1800.0),
-    "aluminium_oxide": (3.8e11, 0.23, 4000.0), "cast_iron": (1.0e11, 0.25, 7000.0),
-    "aluminium_alloy": (7.0e10, 0.33, 2700.0), "steel": (2.08e11, 0.30, 7850.0),
-    "polyethylene": (1.0e9, 0.40, 1400.0), "nylon": (2.5e9, 0.40, 1000.0),
-}
-
 
 # ------------------------------------------------------------------------------ analytics
 def effective(bodies, wall):
@@ -104,13 +89,6 @@ def effective(bodies, wall):
         inv_r += 1.0 / r
         ce += (1.0 - nu * nu) / e
     return 1.0 / inv_m, 1.0 / inv_r, 1.0 / ce
-
-
-def hertz_analytic(m, r, e, v):
-    """delta_max (m), f_max (N), contact_time (s) of an elastic Hertz impact."""
-    dmax = (15.0 * m * v * v / (16.0 * e * math.sqrt(r))) ** 0.4
-    return {"delta_max": dmax, "f_max": 4.0 / 3.0 * e * math.sqrt(r) * dmax ** 1.5,
-            "contact_time": TC_CONSTANT * (m * m / (r * e * e * v)) ** 0.2}
 
 
 def sliding(m1, i1, r1, m2, i2, r2, vn, slip, mu, e):
