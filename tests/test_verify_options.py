@@ -300,9 +300,9 @@ def test_xdist_report_holds_every_certificate(tmp_path):
     certs = {c["name"]: c for c in json.loads(rep.read_text())["certificates"]}
     expected = set(R.SUITE_CERTIFICATES + R.REPO_CERTIFICATES) - {"quadrature convergence"}
     expected |= {f"quadrature convergence [shard {k}/{SHARDS}]" for k in range(1, SHARDS + 1)}
-    # the DEM and mass-property families (their backends: peclet's own here)
-    expected |= set(R.DEM_CERTIFICATES + R.MASS_CERTIFICATES)
-    assert sorted(certs) == sorted(expected) and len(certs) == 20
+    # the DEM, mass-property and impact families (their backends: peclet's own here)
+    expected |= set(R.DEM_CERTIFICATES + R.MASS_CERTIFICATES + R.IMPACT_CERTIFICATES)
+    assert sorted(certs) == sorted(expected) and len(certs) == 28
     for name, c in certs.items():
         if name in R.SUITE_CERTIFICATES:
             assert c["status"] == "failed", name
@@ -311,8 +311,8 @@ def test_xdist_report_holds_every_certificate(tmp_path):
         else:
             assert c["status"] == "passed", (name, c["counterexample"])
     summary = proc.stdout.split("peclet certificates", 1)[1]
-    assert summary.count("FAILED") >= 5 and summary.count("PASSED") == 15
-    assert "5 failed, 15 passed" in proc.stdout
+    assert summary.count("FAILED") >= 5 and summary.count("PASSED") == 23
+    assert "5 failed, 23 passed" in proc.stdout
 
 
 # ---------------------------------------------------------------------- replay

@@ -16,7 +16,9 @@ and the declarations that decide what is judged (never guessed from a run):
     or ``"hooke"`` (a linear spring of the case's ``kn``); ``damping`` and ``tangential``:
     free text the report prints (e.g. ``"Tsuji-form, restitution calibrated"``);
     ``tension`` (bool, default False): the normal force may pull (an unclamped dashpot),
-    which changes the sliding closed form (:mod:`peclet_verify.impact.properties`).
+    which changes the sliding closed form (:mod:`peclet_verify.impact.properties`);
+    ``coulomb`` (``"compressive"``, the default, or ``"absolute"``): with tension, whether
+    the Coulomb limit is mu x the compressive normal force or mu x |F_n|.
 ``capabilities`` (set of str)
     what the engine can express, from :data:`CAPABILITIES`. A case needing one that is not
     declared is reported "not claimed" with the missing names, never passed and never failed.
@@ -33,9 +35,11 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..loading import load_factory
+from .follow import follow_impact
 
 __all__ = ["CAPABILITIES", "NORMAL_MODELS", "ImpactBackend", "PecletImpactBackend",
-           "check_backend", "default_backend", "load_backend", "follow_impact"]
+           "SubprocessImpactBackend", "check_backend", "default_backend", "linear_backend",
+           "load_backend", "follow_impact"]
 
 #: What an impact case can ask of an engine.
 CAPABILITIES = {
@@ -58,27 +62,6 @@ class ImpactBackend(Protocol):
     capabilities: frozenset
 
     def impact(self, case) -> dict: ...
-
-
-def follow_impact(advance, overlap, normal_force, dt, max_steps):
-    """Step an engine until the contact that ``overlap()`` (m, > 0 in contact) measures has
-    begun and ended: ``advance()`` makes one step of ``dt``; ``normal_force()`` is the normal
-    force (N) of the step just made. Returns (delta_max, f_max, contact_time or None if the
-    contact did not end within ``max_steps``). One loop for every engine adapter."""
-    d_prev, t, t_in = overlap(), 0.0, None
-    dmax = fmax = 0.0
-    for _ in range(max_steps):
-        advance()
-        t += dt
-        d = overlap()
-        fmax = max(fmax, normal_force())
-        dmax = max(dmax, d)
-        if t_in is None and d > 0.0 >= d_prev:
-            t_in = t - dt * d / (d - d_prev)
-        if t_in is not None and d <= 0.0 < d_prev:
-            return dmax, fmax, t - dt * d / (d - d_prev) - t_in
-        d_prev = d
-    return dmax, fmax, None
 
 
 class PecletImpactBackend:
@@ -166,6 +149,36 @@ class PecletImpactBackend:
         return {"v": sim.get_velocities(), "w": sim.get_angular_velocities(),
                 "delta_max": dmax, "f_max": fmax,
                 "contact_time": math.nan if t is None else t}
+
+
+class SubprocessImpactBackend:
+    """An :class:`ImpactBackend` served by a child process (``cmd``, which runs
+    :func:`peclet_verify.wire.serve` with an ``impact`` engine, e.g. in another venv): its
+    ``model``, ``capabilities`` and ``name`` are what the child declares. ``env``, ``cwd``,
+    ``timeout`` as for :class:`~peclet_verify.processes.ChildProcess`."""
+
+    own_deadline = True  # the child times out: no in-process deadline on top
+
+    def __init__(self, cmd, name=None, env=None, cwd=None, timeout=None):
+        from ..processes import ChildProcess
+        self.child = ChildProcess(list(cmd), env=env, cwd=cwd, timeout=timeout)
+        if "impact" not in self.child.methods:
+            self.close()
+            raise ValueError(f"child {list(cmd)!r} serves no 'impact'; it offers "
+                             f"{sorted(self.child.methods)}")
+        d = self.child.declared
+        self.name = name or d.get("impact_name") or self.child.name
+        self.model = dict(d.get("impact_model", {}))
+        self.capabilities = frozenset(d.get("impact_capabilities", ()))
+
+    def impact(self, case):
+        out = self.child.call("impact", np.array(case.to_json()))
+        names = [str(n) for n in out[0].reshape(-1)]
+        ans = dict(zip(names, out[1:]))
+        return {k: (float(v) if np.ndim(v) == 0 else v) for k, v in ans.items()}
+
+    def close(self):
+        self.child.close()
 
 
 def check_backend(backend):

@@ -27,10 +27,10 @@ TOLERANCES = {
     1: 2e-3,   # at t_c / 500 the sampled peak and the interpolated crossings err ~1e-5
     2: 2e-3,
     3: 1e-2,   # |e_out - e|: the restitution asked for, at any speed (absolute)
-    4: 1e-2,   # rigid theory while sliding: exact for any force history; 1% leaves the
-    6: 1e-2,   # O(delta/R) of where an engine puts the contact point (peclet: R - delta/2)
-    7: 1e-2,
-    8: 1e-2,
+    4: 1.5e-2,  # rigid theory while sliding: exact for any force history. Leaves room for the
+    6: 1.5e-2,  # O(delta/R) of where an engine puts the contact point (peclet: R - delta/2)
+    7: 1.5e-2,  # and for a tangential spring's build-up from zero, which sticks the first
+    8: 1.5e-2,  # instants near the threshold (1.0 % for a linear kt = 2/7 kn at 1.38 x it)
     5: 3e-2,   # polyethylene at 5 m/s: delta_max is 2.7% of R, so the torque arm's O(delta/R)
 }              # shows at the 1-2% level (validation/chung_ooi.py)
 
@@ -94,15 +94,27 @@ def _rigid(case, e):
     return ref, dv1, dw1
 
 
+def _friction_restitution(model, e):
+    """The restitution whose m* v (1 + .) is the impulse a tension model's Coulomb limit
+    integrates: the compressive force's (``model["coulomb"] == "compressive"``, the default)
+    or |F_n|'s (``"absolute"``: the tension phase resists sliding too, e.g. LAMMPS's
+    F_ncrit = |F_ntot|), which is compressive + tension = 1 + 2 e_c - e."""
+    ec = compressive_restitution(e)
+    return 2.0 * ec - e if model.get("coulomb", "compressive") == "absolute" else ec
+
+
 def _oblique(backend, case, ans):
-    """Tests 4-8: the rigid theory while sliding. An engine whose normal force may pull
+    """Tests 4-8: the rigid theory while sliding, at the engine's own rebound e (the normal
+    impulse m* v (1 + e) it applied). An engine whose normal force may pull
     (``model["tension"]``: an unclamped dashpot) limits friction by the compressive force, so
-    its tangential impulse lies between mu x the net normal impulse and mu x the compressive
-    one (:func:`~peclet_verify.impact.cases.compressive_restitution`): judged against that
-    band."""
+    its tangential impulse lies between mu x the net normal impulse and mu x the impulse its
+    Coulomb limit integrates (:func:`_friction_restitution`): judged against that band."""
     v, w = np.asarray(ans["v"], float), np.asarray(ans["w"], float)
-    ref, dv1, dw1 = _rigid(case, case.e)
-    upper = _rigid(case, compressive_restitution(case.e))[0] \
+    # the normal impulse the engine applied (its own rebound: test 3 judges that), so that
+    # these tests judge the tangential response alone
+    e = float((v[1, 0] if not case.wall else 0.0) - v[0, 0]) / case.approach
+    ref, dv1, dw1 = _rigid(case, e)
+    upper = _rigid(case, _friction_restitution(backend.model, e))[0] \
         if backend.model.get("tension") else ref
     got = {"v0_y": float(v[0, 1]), "w0_z": float(w[0, 2])}
     if not case.wall:
@@ -116,7 +128,7 @@ def _oblique(backend, case, ans):
         errs[k] = max(lo - got[k], got[k] - hi, 0.0) / scale[k[0]]
     worst = max(errs.values())
     band = " (band to the compressive impulse's)" if upper is not ref else ""
-    text = "; ".join(f"{k} {got[k]:.9g} vs rigid theory {ref[k]:.9g}"
+    text = f"rebound e {e:.6g}: " + "; ".join(f"{k} {got[k]:.9g} vs rigid theory {ref[k]:.9g}"
                      f"{f'..{upper[k]:.9g}' if upper is not ref else ''} (rel error "
                      f"{errs[k]:.2e})" for k in ref) + band
     return worst, text, errs
