@@ -7,10 +7,12 @@ from numba.core.registry import CPUDispatcher
 
 from peclet.dem import warm
 from peclet.dem import broadphase, contacts, guards, hertz, narrowphase, rigid, solver
+from peclet.dem import solver_colored, solver_position, solver_rows, solver_velocity
 
 
 def _dispatchers():
-    mods = (broadphase, contacts, guards, hertz, narrowphase, rigid, solver)
+    mods = (broadphase, contacts, guards, hertz, narrowphase, rigid, solver, solver_colored,
+            solver_position, solver_rows, solver_velocity)
     return {f"{m.__name__}.{k}": v for m in mods for k, v in vars(m).items()
             if isinstance(v, CPUDispatcher)}
 
