@@ -108,3 +108,20 @@ def test_failing_night_saves_its_example_database(sandbox, tmp_path):
     assert not (out / "baseline.json").exists()  # a failing night is nobody's baseline
     failures = ET.parse(out / "junit.xml").getroot().findall(".//testcase/failure")
     assert len(failures) == 1
+
+
+def test_downstream_nightly_lists_every_project_with_its_venv():
+    """scripts/nightly-downstream --list: one run per foreign engine and law, each with its
+    side venv, its environment and its xfails file, nothing made or run."""
+    proc = subprocess.run([os.path.join(ROOT, "scripts", "nightly-downstream"), "--list",
+                           "out"], capture_output=True, text=True, timeout=60,
+                          env=dict(os.environ, PECLET_VENVS="/nowhere"))
+    assert proc.returncode == 0, proc.stderr
+    lines = {ln.split(":")[0]: ln for ln in proc.stdout.splitlines() if ":" in ln}
+    for name, var in (("upstream_dem", "PECLET_UPSTREAM_VENV=/nowhere/upstream"),
+                      ("mujoco_dem", "PECLET_MUJOCO_VENV=/nowhere/mujoco"),
+                      ("lammps_hertz", "PECLET_LAMMPS_VENV=/nowhere/lammps"),
+                      ("lammps_hooke", "PECLET_LAMMPS_LAW=hooke")):
+        assert var in lines[name], lines
+        assert "--peclet-xfails" in lines[name] and "--peclet-profile ci" in lines[name]
+    assert not os.path.exists("/nowhere")
