@@ -15,7 +15,8 @@ Used by the suite's own tests and by anyone who wants to see a certificate fail:
 - DEM engines (peclet.dem with one defect each; factories for ``--peclet-dem-backend``):
   :class:`NondeterministicSimulation` (random last bits: fails determinism at one thread),
   :class:`DroppingContactsSimulation` (a contact buffer that never grows: fails buffer
-  growth), :class:`RestitutionOffSimulation` (e 5 % low: fails binary restitution);
+  growth, "silently wrong"), :class:`RefusingCapacitySimulation` (the same buffer, but an
+  error naming it: fails buffer growth, "refused"), :class:`RestitutionOffSimulation` (e 5 % low: fails binary restitution);
 - :class:`OverclaimingVolumeMassBackend` (volume 1e-4 off, claims 1e-8: fails the mass
   properties certificate; factory for ``--peclet-mass-backend``).
 """
@@ -35,8 +36,9 @@ __all__ = ["OverclaimingBoundBackend", "TreeWalkBackend", "biased_cell_quadratur
            "growing_buffer_engine", "BadAnswerBackend", "BAD_ANSWERS", "nan_backend",
            "inf_backend", "none_backend", "empty_backend", "short_backend", "zero_backend",
            "raising_backend", "NondeterministicSimulation", "DroppingContactsSimulation",
-           "RestitutionOffSimulation", "nondeterministic_dem_backend",
-           "dropping_contacts_dem_backend", "restitution_off_dem_backend",
+           "RefusingCapacitySimulation", "RestitutionOffSimulation",
+           "nondeterministic_dem_backend", "dropping_contacts_dem_backend",
+           "refusing_capacity_dem_backend", "restitution_off_dem_backend",
            "OverclaimingVolumeMassBackend", "overclaiming_mass_backend"]
 
 SHELL, HOLLOW_CYLINDER = 4, 2
@@ -333,11 +335,31 @@ class DroppingContactsSimulation(_PecletPage):
             if len(c.a) <= self.buffer:
                 return c
             return type(c)(*(f[:self.buffer] for f in c))
+        truncated.__wrapped__ = detect
         det.detect = truncated
 
     def set_contact_capacity(self, n):
         self._sim.set_contact_capacity(n)
         self.buffer = int(n)
+
+
+class RefusingCapacitySimulation(DroppingContactsSimulation):
+    """Planted: the same fixed buffer, but a step that needs more contacts than it holds
+    stops with an error naming the capacity (an engine that refuses clearly: it fails the
+    buffer-growth certificate as "refused", not "silently wrong")."""
+
+    def __init__(self, capacity):
+        super().__init__(capacity)
+        det = self._sim.world.detector
+        truncated = det.detect
+
+        def refusing(*args, **kwargs):
+            c = truncated.__wrapped__(*args, **kwargs)
+            if len(c.a) > self.buffer:
+                raise RuntimeError(f"contact buffer full: {len(c.a)} contacts, capacity "
+                                   f"{self.buffer} (raise set_contact_capacity)")
+            return c
+        det.detect = refusing
 
 
 class RestitutionOffSimulation(_PecletPage):
@@ -369,6 +391,11 @@ def nondeterministic_dem_backend():
 def dropping_contacts_dem_backend():
     """Factory (``--peclet-dem-backend``): :class:`DroppingContactsSimulation`."""
     return _planted_dem(DroppingContactsSimulation, "planted: drops contacts (small buffer)")
+
+
+def refusing_capacity_dem_backend():
+    """Factory (``--peclet-dem-backend``): :class:`RefusingCapacitySimulation`."""
+    return _planted_dem(RefusingCapacitySimulation, "planted: refuses a full contact buffer")
 
 
 def restitution_off_dem_backend():

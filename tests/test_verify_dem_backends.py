@@ -190,3 +190,22 @@ def test_peclet_passes_every_dem_certificate(tmp_path):
     done, verdicts = certify(tmp_path, [DEM_FILE])
     assert verdicts == {n: "passed" for n in DEM_CERTIFICATES}, done.stdout[-3000:]
     assert done.returncode == 0
+
+
+@pytest.mark.parametrize("factory,kind", [("dropping_contacts_dem_backend", "silently_wrong"),
+                                          ("refusing_capacity_dem_backend", "refused")])
+def test_buffer_growth_tells_a_refusal_from_a_silent_loss(factory, kind):
+    """Both planted engines keep a buffer that never grows and fail buffer growth; the one
+    that stops with an error naming the capacity is reported "refused", the one that runs on
+    with contacts dropped "silently wrong"."""
+    from peclet_verify import planted
+    be = getattr(planted, factory)()
+    # six spheres settling on the floor and on each other: more contacts than a buffer of 1
+    pile = DS.Pour((0.05,) * 6, ((0, 0, 0),) * 6, ((0.0, 0.0, 0.0),) * 6, 0.0, 0.0)
+    res = DP.dem_buffer_growth(be, pile, [(1, 1)])
+    assert not res.passed
+    other = {"refused": "silently_wrong", "silently_wrong": "refused"}[kind]
+    assert res.details[kind] == 1 and res.details[other] == 0, res.details
+    assert ("REFUSED" if kind == "refused" else "SILENTLY WRONG") in res.counterexample
+    if kind == "refused":
+        assert "contact buffer full" in res.counterexample

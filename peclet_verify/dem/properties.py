@@ -247,7 +247,8 @@ def dem_buffer_growth(backend, p: Pour, hints, max_overlap=0.1) -> PropertyResul
     no crash, and no sphere pair overlapping by more than ``max_overlap`` of the smaller
     radius at any record (a dropped contact lets spheres sink into each other; peclet's
     tolerated overlap is 5e-4 of a radius). Figure: the number of hint pairs whose run differs
-    (0 passes)."""
+    (0 passes); ``details`` and the text tell a run that stopped with an error ("refused": the
+    user is told) from one that ran on with contacts lost or spheres sunk ("silently wrong")."""
     name = "buffer_growth"
     fig = REG.figure(name)
     ample_sc = pour_scenario(p, capacity=4 * p.n, contact_capacity=64 * 8 * p.n)
@@ -260,12 +261,17 @@ def dem_buffer_growth(backend, p: Pour, hints, max_overlap=0.1) -> PropertyResul
     if ov > max_overlap:
         differing += 1
         lines.append(f"ample hints: spheres overlap by {ov:.3g} of a radius (> {max_overlap})")
+    refused = silent = 0
     for cap, ccap in hints:
         sc = pour_scenario(p, capacity=cap, contact_capacity=ccap)
         traj, why = run_checked(backend, sc, 1)
         if why:
+            # an engine that stops with an error refuses the capacity (the user knows); one
+            # that runs on with contacts lost is silently wrong: the verdict says which
             differing += 1
-            lines.append(f"Simulation({cap}), contact capacity {ccap}: {why}")
+            refused += 1
+            lines.append(f"REFUSED (the run stopped with an error) at Simulation({cap}), "
+                         f"contact capacity {ccap}: {why}")
             continue
         same = trajectory_hash(traj) == trajectory_hash(ample)
         if not same:
@@ -282,12 +288,14 @@ def dem_buffer_growth(backend, p: Pour, hints, max_overlap=0.1) -> PropertyResul
         lost = int(np.sum(traj["contacts"] < ample["contacts"]))
         if not same or ov > max_overlap:
             differing += 1
-            lines.append(f"Simulation({cap}), contact capacity {ccap}: "
+            silent += 1
+            lines.append(f"SILENTLY WRONG (it ran on) at Simulation({cap}), contact capacity "
+                         f"{ccap}: "
                          f"{first_difference(traj, ample, sc)}; contact counts "
                          f"{traj['contacts'].astype(int).tolist()} vs ample "
                          f"{ample['contacts'].astype(int).tolist()} ({lost} record(s) with "
                          f"fewer contacts); worst overlap {ov:.3g} of a radius")
     text = f"{backend_name(backend)}: " + "\n".join(lines)
     return make_result(name, differing == 0, differing, fig, "max", text,
-                   ample_contacts=ample["contacts"].astype(int).tolist(),
-                   run_to_run_spread=spread)
+                       ample_contacts=ample["contacts"].astype(int).tolist(),
+                       run_to_run_spread=spread, refused=refused, silently_wrong=silent)
