@@ -3,9 +3,9 @@
 Geometry comes straight from the exact trees (fluid nodes where phi > 0, wall crossings on
 every link by a root find of phi along it), so contact points and walls thinner than a cell
 need no special meshing. Modules: ``lattice`` (D3Q19, TRT rates), ``geometry`` (fluid nodes,
-cut links), ``solver`` (TRT, interpolated bounce-back with a parabolic correction, body force,
-mass correction, convergence), ``permeability`` (packs: k, Kozeny, Ergun, drag, Richardson),
-``output`` (VTI/VTU, slice figure).
+cut links), ``solver`` (TRT, body force, mass correction, convergence), ``wall_rule``
+(interpolated bounce-back with a parabolic correction), ``permeability`` (packs: k, Kozeny,
+Ergun, drag, Richardson), ``output`` (VTI/VTU, slice figure).
 
     from peclet.flow import permeability
     r = permeability("pall_ring_pack.npz", resolution=16)

@@ -89,6 +89,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -98,6 +99,7 @@ from peclet.core.validation import (PecletArgumentError, check_array, check_choi
 
 from .geometry import LatticeGeometry
 from .lattice import C, MAGIC_DEFAULT, OPP, Q, W, trt_rates
+from .wall_rule import fallback_counts, link_table
 
 __all__ = ["FlowResult", "solve", "BLOCK", "BALANCE_TOL"]
 
@@ -112,12 +114,51 @@ _CY = np.ascontiguousarray(C[:, 1].astype(np.float64))
 _CZ = np.ascontiguousarray(C[:, 2].astype(np.float64))
 
 
+class Lattice(NamedTuple):
+    """What the step reads of the fluid nodes, lattice units, built once per :func:`solve`:
+    the pull table ``nb`` (19, N) int64 (the node population i is pulled from, or -1 - k on cut
+    link k); per cut link k the wall rule of :func:`~peclet.flow.wall_rule.link_table` (``lc``
+    (K, 3) coefficients, ``ld`` (K, 3) int64 populations, ``ln`` (K, 3) int64 nodes, ``la``
+    (K,), ``lb`` (K,)), ``nm`` (K,) n-_i of the link's node at the previous step (each step
+    writes it), the link's node ``lnode`` (K,) and pulled population ``ldir`` (K,); the velocity
+    set: ``opp`` (19,) int64 opposite populations, ``cx``, ``cy``, ``cz`` (19,) float64
+    components of c_i and the weights ``w`` (19,)."""
+    nb: np.ndarray
+    lc: np.ndarray
+    ld: np.ndarray
+    ln: np.ndarray
+    la: np.ndarray
+    lb: np.ndarray
+    nm: np.ndarray
+    lnode: np.ndarray
+    ldir: np.ndarray
+    opp: np.ndarray
+    cx: np.ndarray
+    cy: np.ndarray
+    cz: np.ndarray
+    w: np.ndarray
+
+
+class Drive(NamedTuple):
+    """The collision's TRT rates ``om_p``, ``om_m`` (omega+ and omega-, per step), the body
+    force density ``fx``, ``fy``, ``fz`` (lattice units, rho0 g) and ``local`` (1.0: the local
+    mass correction of the wall rule, 0.0: the global one only; module docstring)."""
+    om_p: float
+    om_m: float
+    fx: float
+    fy: float
+    fz: float
+    local: float
+
+
 @njit(cache=True, inline="always")
-def _gather(n, fa, nb, lc, ld, ln, la, lb, nm, f):
+def _gather(n, fa, lat, f):
     """Pre-collision populations of node n into f (19,), from post-collision fa (19, N):
     streamed along uncut links, and on cut link k the combination
     sum_m lc[k, m] * fa[ld[k, m], ln[k, m]] + la[k] * nm[k] + lb[k] of the wall rule (see
-    :func:`link_table`; nm[k] is n-_i of the node at the previous step)."""
+    :func:`~peclet.flow.wall_rule.link_table`; nm[k] is n-_i of the node at the previous
+    step)."""
+    nb, lc, ld, ln, la, lb, nm = lat.nb, lat.lc, lat.ld, lat.ln, lat.la, lat.lb, lat.nm
     for i in range(19):
         s = nb[i, n]
         if s >= 0:
@@ -139,11 +180,31 @@ def _wall_mass(n, fa, nb, opp, f):
     return dm
 
 
+@njit(cache=True, inline="always")
+def _corrected_moments(f, dm, lat):
+    """Add the mass correction w_i dm to every population of f (19,), then return its moments
+    (rho, jx, jy, jz) = (sum f, sum f c) (j without the force's half)."""
+    w, cx, cy, cz = lat.w, lat.cx, lat.cy, lat.cz
+    rho = 0.0
+    jx = 0.0
+    jy = 0.0
+    jz = 0.0
+    for i in range(19):
+        f[i] += w[i] * dm
+        rho += f[i]
+        jx += f[i] * cx[i]
+        jy += f[i] * cy[i]
+        jz += f[i] * cz[i]
+    return rho, jx, jy, jz
+
+
 @njit(cache=True, parallel=True)
-def _step(fa, fb, nb, lc, ld, ln, la, lb, nm, opp, cx, cy, cz, w, om_p, om_m, fx, fy, fz, delta,
-          local, sums):
-    """One stream + correct + collide step from fa into fb; sums[b] = (rho, jx, jy, jz) of
-    block b after streaming (j including F/2)."""
+def _step(fa, fb, lat, drive, delta, sums):
+    """One stream + correct + collide step from fa into fb (:class:`Lattice`, :class:`Drive`;
+    ``delta`` the even mass correction per node); sums[b] = (rho, jx, jy, jz) of block b after
+    streaming (j including F/2)."""
+    nb, nm, opp, cx, cy, cz, w = lat.nb, lat.nm, lat.opp, lat.cx, lat.cy, lat.cz, lat.w
+    om_p, om_m, fx, fy, fz, local = drive
     n = fa.shape[1]
     nblk = sums.shape[0]
     for b in prange(nblk):
@@ -153,18 +214,9 @@ def _step(fa, fb, nb, lc, ld, ln, la, lb, nm, opp, cx, cy, cz, w, om_p, om_m, fx
         sjy = 0.0
         sjz = 0.0
         for node in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
-            _gather(node, fa, nb, lc, ld, ln, la, lb, nm, f)
+            _gather(node, fa, lat, f)
             dm = delta - local * _wall_mass(node, fa, nb, opp, f)
-            rho = 0.0
-            jx = 0.0
-            jy = 0.0
-            jz = 0.0
-            for i in range(19):
-                f[i] += w[i] * dm
-                rho += f[i]
-                jx += f[i] * cx[i]
-                jy += f[i] * cy[i]
-                jz += f[i] * cz[i]
+            rho, jx, jy, jz = _corrected_moments(f, dm, lat)
             ux = jx + 0.5 * fx
             uy = jy + 0.5 * fy
             uz = jz + 0.5 * fz
@@ -205,26 +257,18 @@ def _step(fa, fb, nb, lc, ld, ln, la, lb, nm, opp, cx, cy, cz, w, om_p, om_m, fx
 
 
 @njit(cache=True, parallel=True)
-def _macro(fa, nb, lc, ld, ln, la, lb, nm, opp, cx, cy, cz, w, fx, fy, fz, local, rho_out,
-           u_out):
+def _macro(fa, lat, drive, rho_out, u_out):
     """rho and u = sum f c + F/2 (rho0 = 1) of every node after streaming from fa."""
+    nb, opp = lat.nb, lat.opp
+    fx, fy, fz, local = drive.fx, drive.fy, drive.fz, drive.local
     n = fa.shape[1]
     nblk = (n + BLOCK - 1) // BLOCK
     for b in prange(nblk):
         f = np.empty(19)
         for node in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
-            _gather(node, fa, nb, lc, ld, ln, la, lb, nm, f)
+            _gather(node, fa, lat, f)
             dm = -local * _wall_mass(node, fa, nb, opp, f)
-            rho = 0.0
-            jx = 0.0
-            jy = 0.0
-            jz = 0.0
-            for i in range(19):
-                f[i] += w[i] * dm
-                rho += f[i]
-                jx += f[i] * cx[i]
-                jy += f[i] * cy[i]
-                jz += f[i] * cz[i]
+            rho, jx, jy, jz = _corrected_moments(f, dm, lat)
             rho_out[node] = rho
             u_out[node, 0] = jx + 0.5 * fx
             u_out[node, 1] = jy + 0.5 * fy
@@ -255,16 +299,17 @@ def _uncut_flux(fa, nb, cx, cy, cz, out):
 
 
 @njit(cache=True, parallel=True)
-def _link_momentum(fa, nb, lc, ld, ln, la, lb, nm, opp, cx, cy, cz, lnode, ldir, out):
+def _link_momentum(fa, lat, out):
     """Momentum given to the wall per step on each cut link (momentum exchange): the
     population leaving towards the wall, f*_ib(x), minus the one coming back, f_i(x), both
     along c_ib = -c_i. out (K, 3)."""
+    lnode, ldir, opp, cx, cy, cz = lat.lnode, lat.ldir, lat.opp, lat.cx, lat.cy, lat.cz
     k_all = lnode.shape[0]
     for k in prange(k_all):
         f = np.empty(19)
         node = lnode[k]
         i = ldir[k]
-        _gather(node, fa, nb, lc, ld, ln, la, lb, nm, f)
+        _gather(node, fa, lat, f)
         tot = fa[opp[i], node] + f[i]
         out[k, 0] = -cx[i] * tot
         out[k, 1] = -cy[i] * tot
@@ -321,120 +366,7 @@ class FlowResult:
         return float(self.rho.sum() / self.geometry.n_fluid - 1.0)
 
 
-SCHEMES = ("linear", "quadratic", "bouzidi")
 MASS_MODES = ("local", "global")
-
-
-def _correction(q, tp, tm, rule):
-    """(alpha, beta) of the parabolic correction ``alpha n-_i(x) + beta S-_i`` for ``rule``
-    (one of "lin_lo", "lin_hi", "quad_lo", "quad_hi", "bb"); tp, tm the TRT relaxation times.
-
-    Derived here (not copied): the steady TRT solution on one link pair for a velocity
-    U0 + U1 s + U2 s^2 along the link at constant density, with any body force, is solved
-    exactly; the rule's value minus the exact incoming population, required to vanish for
-    every U1, U2, F with u = 0 at the wall, is alpha n- + beta S-.
-    """
-    d = tm * (2.0 * tp - 1.0)
-    if rule == "lin_lo":
-        return (-2.0 * (q * q + 2.0 * q * tp - q - 2.0 * tm * tp + tm) / d,
-                q * (2.0 * tm - 1.0) * (q + 2.0 * tp - 1.0) / d)
-    if rule == "lin_hi":
-        return (-(q * q - 2.0 * q * tp + q - 2.0 * tm * tp + tm + 2.0 * tp - 1.0) / (q * d),
-                (2.0 * tm - 1.0) * (q * q - 2.0 * q * tp + q + 2.0 * tp - 1.0) / (2.0 * q * d))
-    if rule == "quad_lo":
-        return (2.0 * (q * q - 2.0 * q * tp + 2.0 * tm * tp - tm) / d,
-                -q * (q - 2.0 * tp) * (2.0 * tm - 1.0) / d)
-    if rule == "quad_hi":
-        e = q * (2.0 * q + 1.0) * d
-        return (2.0 * (q * q + 2.0 * q * tp - 2.0 * q + 2.0 * tm * tp - tm - 2.0 * tp + 1.0) / e,
-                -(q - 1.0) * (2.0 * tm - 1.0) * (q + 2.0 * tp - 1.0) / e)
-    return (-(2.0 * q * q - 4.0 * tm * tp + 2.0 * tm + 2.0 * tp - 1.0) / d,
-            (2.0 * tm - 1.0) * (2.0 * q * q + 2.0 * tp - 1.0) / (2.0 * d))
-
-
-def link_table(geo, scheme="linear", omegas=(1.0, 1.0), force=(0.0, 0.0, 0.0)):
-    """The wall rule of every cut link: (lc (K, 3) float64, ld (K, 3) int64 populations,
-    ln (K, 3) int64 nodes, la (K,), lb (K,)), so that the population pulled on link k is
-    ``sum_m lc[k, m] * f*[ld[k, m], ln[k, m]] + la[k] * n-_i(x) + lb[k]`` with f* the
-    post-collision values and n-_i(x) the antisymmetric non-equilibrium part of the pulled
-    population at its node in the previous step.
-
-    With i the pulled population, o its opposite (heading to the wall), q the wall fraction,
-    x the node, x_f = x + c_i and x_ff = x + 2 c_i, the interpolation (Bouzidi, Firdaouss &
-    Lallemand 2001, Lagrange interpolation along the link of the population that reflects):
-
-    - linear, q < 1/2: 2q f*_o(x) + (1-2q) f*_o(x_f);
-      q >= 1/2: f*_o(x)/(2q) + (1-1/(2q)) f*_i(x);
-    - quadratic, q < 1/2: q(1+2q) f*_o(x) + (1-4q^2) f*_o(x_f) - q(1-2q) f*_o(x_ff);
-      q >= 1/2: f*_o(x)/(q(2q+1)) + (2q-1)/q f*_i(x) + (1-2q)/(1+2q) f*_i(x_f).
-
-    "linear" and "quadratic" add a parabolic correction ``alpha(q) n-_i(x) + beta(q) S-_i``
-    (S-_i = 3 w_i c_i.F, the antisymmetric force term) that makes the rule exact for a
-    velocity parabolic along the link at uniform density under TRT, for any q, viscosity and
-    magic parameter (see :func:`_correction`); "bouzidi" is the plain linear rule (second
-    order, its error grows with the magic parameter and q). Where a node the stencil needs
-    is missing (solid, or behind another cut link) the quadratic rule falls back to the
-    linear one, and the linear one for q < 1/2 without x_f to bounce-back from the node
-    itself, f*_o(x), with its own correction (counted by :func:`fallback_counts`).
-    """
-    scheme = check_choice("scheme", scheme, SCHEMES)
-    tp, tm = 1.0 / omegas[0], 1.0 / omegas[1]
-    q = np.asarray(geo.link_q, np.float64)
-    i = np.asarray(geo.link_dir, np.int64)
-    o = OPP[i]
-    x = np.asarray(geo.link_node, np.int64)
-    xf = np.asarray(geo.link_ff, np.int64)
-    xff = np.asarray(geo.link_fff, np.int64)
-    k = len(q)
-    lc = np.zeros((k, 3))
-    ld = np.zeros((k, 3), np.int64)
-    ln = np.zeros((k, 3), np.int64)
-    la = np.zeros(k)
-    beta = np.zeros(k)
-    ld[:] = o[:, None]
-    ln[:] = x[:, None]
-    lo = q < 0.5
-    quad = scheme == "quadratic"
-
-    def rule(m, name, coef, dirs, nodes):
-        for c in range(len(coef)):
-            lc[m, c] = coef[c]
-            ld[m, c] = dirs[c][m] if isinstance(dirs[c], np.ndarray) else dirs[c]
-            ln[m, c] = nodes[c][m]
-        if scheme != "bouzidi":
-            la[m], beta[m] = _correction(q[m], tp, tm, name)
-
-    m = ~lo
-    qq = q[m]
-    rule(m, "lin_hi", (1.0 / (2.0 * qq), 1.0 - 1.0 / (2.0 * qq)), (o, i), (x, x))
-    m = lo & (xf >= 0)
-    qq = q[m]
-    rule(m, "lin_lo", (2.0 * qq, 1.0 - 2.0 * qq), (o, o), (x, xf))
-    m = lo & (xf < 0)
-    rule(m, "bb", (np.ones(int(m.sum())),), (o,), (x,))
-    if quad:
-        m = lo & (xff >= 0)
-        qq = q[m]
-        rule(m, "quad_lo", (qq * (1.0 + 2.0 * qq), 1.0 - 4.0 * qq * qq, -qq * (1.0 - 2.0 * qq)),
-             (o, o, o), (x, xf, xff))
-        m = ~lo & (xf >= 0)
-        qq = q[m]
-        rule(m, "quad_hi", (1.0 / (qq * (2.0 * qq + 1.0)), (2.0 * qq - 1.0) / qq,
-                            (1.0 - 2.0 * qq) / (1.0 + 2.0 * qq)), (o, i, i), (x, x, xf))
-    F = np.asarray(force, np.float64)
-    lb = beta * 3.0 * W[i] * (C[i] @ F)
-    return lc, ld, ln, la, lb
-
-
-def fallback_counts(geo, scheme="linear"):
-    """{"linear": links where the quadratic stencil was incomplete, "bounce_back": links on
-    bounce-back from the node itself} for ``scheme``."""
-    q, xf, xff = geo.link_q, geo.link_ff, geo.link_fff
-    half = int(np.count_nonzero((q < 0.5) & (xf < 0)))
-    if scheme != "quadratic":
-        return {"linear": 0, "bounce_back": half}
-    lin = int(np.count_nonzero(((q < 0.5) & (xf >= 0) & (xff < 0)) | ((q >= 0.5) & (xf < 0))))
-    return {"linear": lin, "bounce_back": half}
 
 
 def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme="linear",
@@ -479,8 +411,11 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
     fb = np.empty_like(fa)
     nblk = (n + BLOCK - 1) // BLOCK
     sums = np.zeros((nblk, 4))
-    w = W.copy()
-    fx, fy, fz = (float(v) for v in F)
+    lnode = np.ascontiguousarray(geo.link_node)
+    ldir = np.ascontiguousarray(geo.link_dir)
+    # the kernels' bundles, once per run (nm, in lat, is the step's state: written each step)
+    lat = Lattice(nb, lc, ld, ln, la, lb, nm, lnode, ldir, OPP, _CX, _CY, _CZ, W.copy())
+    drive = Drive(om_p, om_m, *(float(v) for v in F), local)
     mass0 = float(n)
     delta = 0.0
     cells = geo.grid.n_cells
@@ -489,8 +424,6 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
     prev_U = None
     prev_r = None
     r = tail = bal = math.inf
-    lnode = np.ascontiguousarray(geo.link_node)
-    ldir = np.ascontiguousarray(geo.link_dir)
     lf = np.empty((len(lc), 3))
     nF = float(np.linalg.norm(F)) * n
     converged = False
@@ -499,13 +432,12 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
     t0 = time.perf_counter()
 
     def balance():
-        _link_momentum(fa, nb, lc, ld, ln, la, lb, nm, OPP, _CX, _CY, _CZ, lnode, ldir, lf)
+        _link_momentum(fa, lat, lf)
         return float(_ordered_sum(lf) @ fdir) / nF
 
     def advance():
         nonlocal fa, fb, delta, steps
-        _step(fa, fb, nb, lc, ld, ln, la, lb, nm, OPP, _CX, _CY, _CZ, w, om_p, om_m, fx, fy,
-              fz, delta, local, sums)
+        _step(fa, fb, lat, drive, delta, sums)
         fa, fb = fb, fa
         steps += 1
         tot = sums.sum(axis=0) if nblk < 2 else _ordered_sum(sums)
@@ -546,8 +478,7 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
             advance()
         rho = np.empty(n)
         u = np.empty((n, 3))
-        _macro(fa, nb, lc, ld, ln, la, lb, nm, OPP, _CX, _CY, _CZ, w, fx, fy, fz, local, rho,
-               u)
+        _macro(fa, lat, drive, rho, u)
         flux = np.zeros((nblk, 3))
         _uncut_flux(fa, nb, _CX, _CY, _CZ, flux)
         bb = balance()

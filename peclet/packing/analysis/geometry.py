@@ -20,6 +20,7 @@ are bitwise the same at any thread count:
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -35,12 +36,28 @@ __all__ = ["PackGeometry", "compile_kernels", "bulk_windows", "cover_fractions",
            "sweep_voidage", "fraction_se"]
 
 
+class Trees(NamedTuple):
+    """The element's and its envelope's trees as flat programs (home frame): the program
+    tables ``ops``, ``lk``, ``lr`` (:func:`peclet.core.geom.program.concatenate`), the element's
+    rows [``s0``, ``s1``) and the envelope's [``e0``, ``e1``) (``e0 < 0``: no envelope)."""
+    ops: np.ndarray
+    lk: np.ndarray
+    lr: np.ndarray
+    s0: int
+    s1: int
+    e0: int
+    e1: int
+
+
 @njit(cache=True, parallel=True)
-def _cover_kernel(ops, lk, lr, s0, s1, e0, e1, img_pos, img_rot, cutoff, pts, nin, inenv):
+def _cover_kernel(trees, img_pos, img_rot, cutoff, pts, nin, inenv):
     """nin[q] = #images with phi < 0 at pts[q]; inenv[q] = 1 if some envelope has phi <= 0.
 
-    img_rot[i] is the row-major home->world rotation of image i; e0 < 0 disables the envelope.
+    ``trees`` a :class:`Trees`; img_pos[i] (world) and img_rot[i] (the row-major home->world
+    rotation) the pose of image i; cutoff the distance (length) beyond which an image cannot
+    contain a point.
     """
+    ops, lk, lr, s0, s1, e0, e1 = trees
     n = pts.shape[0]
     m = img_pos.shape[0]
     c2 = cutoff * cutoff
@@ -116,6 +133,9 @@ class PackGeometry:
             progs.append(b.program(pack.envelope_root))
         self.ops, self.lk, self.lr, self.ranges = concatenate(progs)
         self.has_env = pack.envelope_root >= 0
+        s0, s1 = self.ranges[0]
+        e0, e1 = self.ranges[1] if self.has_env else (-1, -1)
+        self.trees = Trees(self.ops, self.lk, self.lr, s0, s1, e0, e1)
         Lx, Lz = pack.box
         self.R = pack.rotations()
         shifts = np.array([[i * Lx, 0.0, j * Lz] for i in (-1, 0, 1) for j in (-1, 0, 1)])
@@ -134,10 +154,7 @@ class PackGeometry:
         pts = np.ascontiguousarray(pts, dtype=np.float64)
         nin = np.empty(len(pts), np.int64)
         env = np.empty(len(pts), np.int64)
-        s0, s1 = self.ranges[0]
-        e0, e1 = self.ranges[1] if self.has_env else (-1, -1)
-        _cover_kernel(self.ops, self.lk, self.lr, s0, s1, e0, e1, self.img_pos, self.img_rot,
-                      self.cutoff, pts, nin, env)
+        _cover_kernel(self.trees, self.img_pos, self.img_rot, self.cutoff, pts, nin, env)
         return nin, env.astype(bool)
 
     def probe_min(self, a_idx, b_img):

@@ -31,17 +31,10 @@ from .checks import OUTPUTS, check_run, clear_outputs
 from ..bed.pour import pour
 from ..bed.progress import ms_per_step
 from .sweep_process import SweepProcess
+from .table import PAGE, results_table
 
 __all__ = ["run", "check_run", "PAGE", "results_table", "OUTPUTS",
            "check_stages"]
-
-#: The reference page's Results (Step 7 table and the text), for the side-by-side table.
-PAGE = dict(cert_violating=0.0, sign_exact_violating=0.2468, sign_exact_worst=0.7071,
-            volume_fraction=0.3413, area=6.5607, specific_surface=8.353,
-            probe_spacing_median=0.0369, eps=0.800, eps_spread=0.0011, f_env=0.582,
-            z_mean=3.75, rattlers=0, cos_mean=0.526, cos_sem=0.042, ke_ratio=4.7e-4,
-            max_overlap=0.027, max_overlap_wall=0.23, double=0.000092,
-            eps_thin=0.957, eps_thick=0.743, runtime_s=346.0)
 
 SWEEP_T = (0.024, 0.04, 0.06, 0.08, 0.12, 0.16)
 #: The sweep's quadrature tolerance (relative, on each thickness' volume).
@@ -54,6 +47,7 @@ SWEEP_TOL = 1e-4
 #: that lets rings overlap (its max overlap was 23% of the wall); ours removes overlap and
 #: leaves touching rings at gaps of its resting slop (~4e-4 D).
 CONTACT_GAP = 1e-3
+
 
 def _page_floor(box):
     """The page's floor as a solid tree (:func:`peclet.packing.bed.freeze.add_floor`'s box)."""
@@ -98,20 +92,14 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
     a bad one raises :class:`~peclet.core.validation.PecletArgumentError` and nothing is
     written. The domain's height follows from the count (the start cloud's top).
     """
-    from scipy.spatial import cKDTree
-
-    from peclet.dem import scene_particle
-
     plan = check_run(out=out, rings=rings, seed=seed, threads=threads, steps_scale=steps_scale,
                      box=box, mc_samples=mc_samples, shell_points=shell_points,
                      overwrite=overwrite, particle=particle, quad_n=quad_n,
                      shell_resolution=shell_resolution, sweep=sweep, sweep_n=sweep_n,
                      mesh_n=mesh_n, progress=progress, write_figures=write_figures,
                      animation=animation, log=log)
-    rings, seed, box, out = plan.rings, plan.seed, plan.box, plan.out
+    out = plan.out
     stages = check_stages(stages)
-    mc_samples, shell_points, steps_scale = plan.mc_samples, plan.shell_points, plan.steps_scale
-    protocol = plan.protocol
     if threads is not None:
         set_threads(plan.threads)
     with recording(out, OUTPUTS):   # the manifest of what this run writes (core.outputs)
@@ -130,190 +118,37 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
         if quadrature_cached():
             sweeper = SweepProcess(*sweep_args)
         try:
-            res = dict(config=dict(rings=rings, seed=seed, threads=plan.threads,
-                                   steps_scale=steps_scale, box=box, y_top=plan.y_top,
-                                   mc_samples=mc_samples, quad_n=quad_n, sweep_n=sweep_n,
-                                   shell_points=shell_points, protocol=protocol.__dict__.copy()))
-
-            # ---- Steps 1-2: the ring and its certificate
-            t = time.perf_counter()
-            ring = elements.pall_ring()
-            twin = elements.pall_ring(certified=False)
-            b, root = ring
-            cert = analysis.certificate_check(b, root)
-            bad = analysis.certificate_check(twin.builder, twin.root)
-            q = np.random.default_rng(11).uniform(-1.0, 1.0, size=(200_000, 3))
-            same = float((np.sign(b.eval_root(root, q))
-                          == np.sign(twin.builder.eval_root(twin.root, q))).mean())
-            res["certificate"] = dict(certified=cert, sign_exact=bad, same_sign=same,
-                                      nodes=int(b.num_nodes()))
-            # the element's resolved construction parameters (elements.PARAMS; lengths in D)
-            res["element"] = dict(name=ring.name, text=elements.element_text(ring.name, {}),
-                                  params={k: list(v) if isinstance(v, tuple) else v
-                                          for k, v in ring.params.items()})
-            timing["certificate"] = time.perf_counter() - t
-
-            # ---- Step 3: measure, reframe, shell
-            t = time.perf_counter()
-            if particle is None:
-                sp = scene_particle.build(b, root, bounds=ring.bounds, n=quad_n,
-                                          shell_resolution=shell_resolution,
-                                          target_shell_points=shell_points)
-            else:
-                sp = particle
-                ni0, nr0, _, _ = b.encode()
-                if not (len(sp.node_ints) > len(ni0)
-                        and np.array_equal(np.asarray(sp.node_ints)[:len(ni0)], ni0)
-                        and np.array_equal(np.asarray(sp.node_reals)[:len(ni0)], nr0)):
-                    raise ValueError("particle must be built on the builder of "
-                                     "elements.pall_ring()")
-                b = type(b).decode(sp.node_ints, sp.node_reals)
-            timing["scene_particle"] = time.perf_counter() - t
-            tq, qq, sq = home_transform(b, root, sp.home_root)
-            env_home = b.add_reframed(ring.envelope_root, translation=tq, rotation=qq, scale=sq)
-            axis_home = quat_to_matrix(qq) @ np.array([0.0, 1.0, 0.0])
-            d_nn, _ = cKDTree(sp.shell).query(sp.shell, k=2)
-            t = time.perf_counter()
-            _, _, area = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, mesh_n)
-            timing["surface_mesh"] = time.perf_counter() - t
-            v_env = ring.envelope_volume
-            res["particle"] = dict(
-                volume=float(sp.volume), volume_error=float(sp.volume_error),
-                volume_fraction=float(sp.volume / v_env), envelope_volume=v_env,
-                com=np.asarray(sp.com, float).tolist(), principal=np.asarray(sp.principal).tolist(),
-                moment_error=float(np.max(sp.moment_error)), quat=np.asarray(sp.quat).tolist(),
-                bounding_radius=float(sp.bounding_radius), shell_points=int(len(sp.shell)),
-                probe_spacing_median=float(np.median(d_nn[:, 1])),
-                probe_spacing_p90=float(np.percentile(d_nn[:, 1], 90)),
-                min_feature=float(ring.min_feature), surface_area=area,
-                specific_surface=area / v_env, mesh_n=int(mesh_n))
-
+            res = dict(config=_config(plan, quad_n, sweep_n))
+            ring = _certificate(res, timing)
+            sp, b, env_home, axis_home = _measure(ring, particle, plan, quad_n,
+                                                  shell_resolution, mesh_n, res, timing)
             if sweeper is None:
                 sweeper = SweepProcess(*sweep_args)
-
-            # ---- a cold run: while the DEM kernels compile in the children, the analysis' kernels
-            # compile here (on a one-ring pack of this element: the same signatures)
-            ni, nr, _, _ = b.encode()
-
-            def pack_of(positions, quaternions):
-                return Pack(positions, quaternions, [box, box], sp.volume, ni, nr, sp.home_root,
-                            sp.bounding_radius, sp.shell, sp.mass, sp.inv_inertia_unit, env_home,
-                            v_env, axis_home)
+            pack_of = _pack_maker(sp, b, plan.box, env_home, ring.envelope_volume, axis_home)
             if warm.running(warming):
+                # a cold run: while the DEM kernels compile in the children, the analysis'
+                # kernels compile here (on a one-ring pack of this element: the same signatures)
                 t = time.perf_counter()
                 analysis.compile_kernels(pack_of(np.array([[0.0, 1.0, 0.0]]),
                                                  np.array([[0.0, 0.0, 0.0, 1.0]])))
                 timing["analysis_compile"] = time.perf_counter() - t
-
-            # ---- Step 4: pour
-            t = time.perf_counter()
-            if warming is not None:
-                log("waiting for the DEM kernels compiling beside the measurement (first run only)")
-                warm.finish(warming)
-                timing["wait_for_dem_kernels"] = time.perf_counter() - t
-                t = time.perf_counter()
-            pr = pour(sp, n=rings, box=box, seed=seed, protocol=protocol, progress=progress,
-                      y_top=plan.y_top)
-            timing["pour"] = time.perf_counter() - t
-            sim = pr.sim
-            wall_t = ring.params["thickness"]
-            e_scale = rings * sp.mass * 9.81 * 1.0      # lifting the whole bed one diameter
-            ke_end = float(sim.kinetic_energy())
-            max_ov_engine = float(sim.compute_overlaps())
-            res["pour"] = dict(steps=pr.steps, seconds=pr.seconds,
-                               first_step_seconds=pr.first_step_seconds,
-                               ms_per_step=ms_per_step(pr.seconds, pr.first_step_seconds, pr.steps),
-                               ke_end=ke_end,
-                               ke_ratio=ke_end / e_scale, max_overlap_engine=max_ov_engine,
-                               bed_y=[float(pr.positions[:, 1].min()),
-                                      float(pr.positions[:, 1].max())])
-
+            pr, max_ov_engine = _pour(sp, plan, warming, progress, log, res, timing)
             # ---- Step 7 (frozen state first: every statistic below is computed from it)
             pack = pack_of(pr.positions, pr.quaternions)
-            npz = save_pack(os.path.join(out, "pall_ring_pack.npz"), pack)
-            res["pack_file"] = dict(path=os.path.abspath(npz), kib=os.path.getsize(npz) / 1024)
-            fpos = np.array([f[0] for f in pr.frames])
-            fquat = np.array([f[1] for f in pr.frames])
-
-            def write_frames(tmp):
-                with open(tmp, "wb") as fh:
-                    np.savez_compressed(fh, positions=fpos, quaternions=fquat,
-                                        t=np.asarray(pr.frame_t), ke_t=np.asarray(pr.t),
-                                        ke=np.asarray(pr.ke))
-            atomic_write(os.path.join(out, "pour_frames.npz"), write_frames)
-
-            # ---- Step 5: the pack, numerically
-            t = time.perf_counter()
-            geo = analysis.PackGeometry(pack)
-            windows, wscale = analysis.bulk_windows(pack)
-            fr = [analysis.cover_fractions(geo, w, mc_samples, seed=k)
-                  for k, w in enumerate(windows)]
-            con = analysis.probe_overlap(geo)
-            co = coordination.engine_coordination(pack, [_page_floor(box)], gap=CONTACT_GAP)
-            ori = analysis.orientation(pack)
-            box_chk = analysis.floor_and_box(pack, y_top=plan.y_top)
-            eps_all = np.array([f["eps"] for f in fr])
-            res["pack"] = dict(
-                windows=fr, window_scale=wscale, eps=fr[0]["eps"], eps_se=fr[0]["eps_se"],
-                eps_mean=float(eps_all.mean()), eps_spread=float(eps_all.std()),
-                f_env=fr[0]["f_env"], f_env_se=fr[0]["f_env_se"], double=fr[0]["double"],
-                double_se=fr[0]["double_se"], z_mean=co["z_total"], z_elem=co["z_elem"],
-                rattlers=co["rattlers"], under_stable=co["under_stable"],
-                floor_contacts=int(co["wall"].sum()), contact_gap=CONTACT_GAP,
-                contact_method=co["method"], contacts_per_ring=co["total"].tolist(),
-                contact_pairs=co["pairs"], candidate_pairs=con["pairs"],
-                max_overlap=con["max_depth"], max_overlap_wall=con["max_depth"] / wall_t,
-                max_overlap_engine_wall=max_ov_engine / wall_t,
-                cos_mean=ori["mean"], cos_sem=ori["sem"], cos_sem_iso=ori["sem_iso"],
-                cos=ori["cos"].tolist(), lowest_probe=box_chk["min_lowest_probe"],
-                all_in_box=box_chk["all_in_box"], n_outside=box_chk["n_outside"])
-            timing["analysis"] = time.perf_counter() - t
-
+            _freeze(out, pack, pr, res)
+            wall_t = ring.params["thickness"]
+            fr, ori = _analyse(pack, plan, wall_t, max_ov_engine, res, timing)
             # ---- optional stages on the frozen pack (the flow), beside the sweep
             for name, run_stage in stages.items():
                 t = time.perf_counter()
                 res[name] = run_stage(pack, progress)
                 timing[name] = time.perf_counter() - t
-
-            # ---- figures of the pour and the pack, while the sweep's child finishes
             figs = {}
             if write_figures:
-                t = time.perf_counter()
-                # matplotlib (0.7 s to import) only where a figure is drawn: a refused or
-                # figure-less run, and the command line's checks, never load it
-                from ..output import figures
-                rv, rf, _ = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, 60)  # (area: mesh_n)
-                figs = dict(
-                    ring=figures.ring_views(rv, rf, os.path.join(out, "ring.png")),
-                    kinetic_energy=figures.kinetic_energy(
-                        pr.t, pr.ke, protocol.phases(), protocol.dt,
-                        os.path.join(out, "kinetic_energy.png")),
-                    pack=figures.pack_by_height(pack.positions, pack.rotations(), pack.shell,
-                                                pack.box, os.path.join(out, "pack.png")),
-                    orientation=figures.orientation_histogram(
-                        ori["cos"], os.path.join(out, "orientation.png")))
-                if animation:
-                    figs["animation"] = figures.pour_animation(
-                        pr.frames, pr.frame_t, pack.shell, pack.box, os.path.join(out, "pour.gif"))
-                timing["figures"] = time.perf_counter() - t
-
-            # ---- Step 6: the wall-thickness sweep, eps(t) = 1 - f_env s(t)
-            t = time.perf_counter()
-            fractions = sweeper.rows()
-            timing["sweep_wait"] = time.perf_counter() - t
-            rows = analysis.sweep_voidage(fractions, fr[0]["f_env"], fr[0]["f_env_se"])
-            res["sweep"] = rows
-            # read from the results cache (an earlier run's rows, the same bits) or computed now
-            res["sweep_source"] = "cache" if sweeper.from_cache else "computed"
-            if write_figures:
-                t = time.perf_counter()
-                figs["voidage_sweep"] = figures.voidage_sweep(
-                    rows, fr[0]["eps"], wall_t / 1.0, os.path.join(out, "voidage_sweep.png"))
-                timing["figures"] += time.perf_counter() - t
-                res["figures"] = {k: os.path.abspath(v) for k, v in figs.items()}
+                figs = _figures(b, ring.root, pr, pack, ori, plan, animation, timing)
+            _sweep(sweeper, fr, wall_t, write_figures, figs, out, res, timing)
             timing["total"] = time.perf_counter() - T0
             res["timing"] = timing
-
             res["results_json"] = os.path.abspath(
                 write_json(os.path.join(out, "results.json"), res))
             if log is not None:
@@ -322,6 +157,216 @@ def run(out="results", rings=48, seed=5, threads=None, steps_scale=1.0, box=3.5,
         finally:
             if sweeper is not None:
                 sweeper.stop()          # a run that failed: the child is not left running
+
+
+def _config(plan, quad_n, sweep_n):
+    """The run's settings as the results record them (``res["config"]``)."""
+    return dict(rings=plan.rings, seed=plan.seed, threads=plan.threads,
+                steps_scale=plan.steps_scale, box=plan.box, y_top=plan.y_top,
+                mc_samples=plan.mc_samples, quad_n=quad_n, sweep_n=sweep_n,
+                shell_points=plan.shell_points, protocol=plan.protocol.__dict__.copy())
+
+
+def _certificate(res, timing):
+    """Steps 1-2: the ring, its certificate against the sign-exact twin (``res["certificate"]``)
+    and its resolved construction parameters (``res["element"]``). Returns the ring."""
+    t = time.perf_counter()
+    ring = elements.pall_ring()
+    twin = elements.pall_ring(certified=False)
+    b, root = ring
+    cert = analysis.certificate_check(b, root)
+    bad = analysis.certificate_check(twin.builder, twin.root)
+    q = np.random.default_rng(11).uniform(-1.0, 1.0, size=(200_000, 3))
+    same = float((np.sign(b.eval_root(root, q))
+                  == np.sign(twin.builder.eval_root(twin.root, q))).mean())
+    res["certificate"] = dict(certified=cert, sign_exact=bad, same_sign=same,
+                              nodes=int(b.num_nodes()))
+    # the element's resolved construction parameters (elements.PARAMS; lengths in D)
+    res["element"] = dict(name=ring.name, text=elements.element_text(ring.name, {}),
+                          params={k: list(v) if isinstance(v, tuple) else v
+                                  for k, v in ring.params.items()})
+    timing["certificate"] = time.perf_counter() - t
+    return ring
+
+
+def _measure(ring, particle, plan, quad_n, shell_resolution, mesh_n, res, timing):
+    """Step 3: measure, reframe and shell the ring (or take ``particle``, built on the ring's
+    builder), and its surface area; ``res["particle"]``. Returns (the particle, the builder it
+    lives in, its envelope's root and its axis in its home frame)."""
+    from scipy.spatial import cKDTree
+
+    from peclet.dem import scene_particle
+
+    b, root = ring
+    t = time.perf_counter()
+    if particle is None:
+        sp = scene_particle.build(b, root, bounds=ring.bounds, n=quad_n,
+                                  shell_resolution=shell_resolution,
+                                  target_shell_points=plan.shell_points)
+    else:
+        sp = particle
+        ni0, nr0, _, _ = b.encode()
+        if not (len(sp.node_ints) > len(ni0)
+                and np.array_equal(np.asarray(sp.node_ints)[:len(ni0)], ni0)
+                and np.array_equal(np.asarray(sp.node_reals)[:len(ni0)], nr0)):
+            raise ValueError("particle must be built on the builder of "
+                             "elements.pall_ring()")
+        b = type(b).decode(sp.node_ints, sp.node_reals)
+    timing["scene_particle"] = time.perf_counter() - t
+    tq, qq, sq = home_transform(b, root, sp.home_root)
+    env_home = b.add_reframed(ring.envelope_root, translation=tq, rotation=qq, scale=sq)
+    axis_home = quat_to_matrix(qq) @ np.array([0.0, 1.0, 0.0])
+    d_nn, _ = cKDTree(sp.shell).query(sp.shell, k=2)
+    t = time.perf_counter()
+    _, _, area = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, mesh_n)
+    timing["surface_mesh"] = time.perf_counter() - t
+    v_env = ring.envelope_volume
+    res["particle"] = dict(
+        volume=float(sp.volume), volume_error=float(sp.volume_error),
+        volume_fraction=float(sp.volume / v_env), envelope_volume=v_env,
+        com=np.asarray(sp.com, float).tolist(), principal=np.asarray(sp.principal).tolist(),
+        moment_error=float(np.max(sp.moment_error)), quat=np.asarray(sp.quat).tolist(),
+        bounding_radius=float(sp.bounding_radius), shell_points=int(len(sp.shell)),
+        probe_spacing_median=float(np.median(d_nn[:, 1])),
+        probe_spacing_p90=float(np.percentile(d_nn[:, 1], 90)),
+        min_feature=float(ring.min_feature), surface_area=area,
+        specific_surface=area / v_env, mesh_n=int(mesh_n))
+    return sp, b, env_home, axis_home
+
+
+def _pack_maker(sp, b, box, env_home, v_env, axis_home):
+    """``pack_of(positions, quaternions)``: the :class:`Pack` of particles ``sp`` (in builder
+    ``b``, envelope ``env_home`` of volume ``v_env``, axis ``axis_home``) at those poses in the
+    periodic box of side ``box``."""
+    ni, nr, _, _ = b.encode()
+
+    def pack_of(positions, quaternions):
+        return Pack(positions, quaternions, [box, box], sp.volume, ni, nr, sp.home_root,
+                    sp.bounding_radius, sp.shell, sp.mass, sp.inv_inertia_unit, env_home,
+                    v_env, axis_home)
+    return pack_of
+
+
+def _pour(sp, plan, warming, progress, log, res, timing):
+    """Step 4: pour, tap and quench (after the DEM kernels compiling in ``warming``'s children,
+    if any); ``res["pour"]``. Returns (the pour's result, the engine's largest overlap)."""
+    from peclet.dem import warm
+
+    t = time.perf_counter()
+    if warming is not None:
+        log("waiting for the DEM kernels compiling beside the measurement (first run only)")
+        warm.finish(warming)
+        timing["wait_for_dem_kernels"] = time.perf_counter() - t
+        t = time.perf_counter()
+    pr = pour(sp, n=plan.rings, box=plan.box, seed=plan.seed, protocol=plan.protocol,
+              progress=progress, y_top=plan.y_top)
+    timing["pour"] = time.perf_counter() - t
+    sim = pr.sim
+    e_scale = plan.rings * sp.mass * 9.81 * 1.0      # lifting the whole bed one diameter
+    ke_end = float(sim.kinetic_energy())
+    max_ov_engine = float(sim.compute_overlaps())
+    res["pour"] = dict(steps=pr.steps, seconds=pr.seconds,
+                       first_step_seconds=pr.first_step_seconds,
+                       ms_per_step=ms_per_step(pr.seconds, pr.first_step_seconds, pr.steps),
+                       ke_end=ke_end,
+                       ke_ratio=ke_end / e_scale, max_overlap_engine=max_ov_engine,
+                       bed_y=[float(pr.positions[:, 1].min()),
+                              float(pr.positions[:, 1].max())])
+    return pr, max_ov_engine
+
+
+def _freeze(out, pack, pr, res):
+    """Step 7's files: the frozen ``pack`` (``pall_ring_pack.npz``, ``res["pack_file"]``) and the
+    pour's frames and kinetic-energy history (``pour_frames.npz``)."""
+    npz = save_pack(os.path.join(out, "pall_ring_pack.npz"), pack)
+    res["pack_file"] = dict(path=os.path.abspath(npz), kib=os.path.getsize(npz) / 1024)
+    fpos = np.array([f[0] for f in pr.frames])
+    fquat = np.array([f[1] for f in pr.frames])
+
+    def write_frames(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, positions=fpos, quaternions=fquat,
+                                t=np.asarray(pr.frame_t), ke_t=np.asarray(pr.t),
+                                ke=np.asarray(pr.ke))
+    atomic_write(os.path.join(out, "pour_frames.npz"), write_frames)
+
+
+def _analyse(pack, plan, wall_t, max_ov_engine, res, timing):
+    """Step 5: the pack, numerically (voidage in the bulk windows, overlap, coordination,
+    orientation, containment); ``res["pack"]``. Returns (the windows' fractions, the
+    orientation)."""
+    t = time.perf_counter()
+    geo = analysis.PackGeometry(pack)
+    windows, wscale = analysis.bulk_windows(pack)
+    fr = [analysis.cover_fractions(geo, w, plan.mc_samples, seed=k)
+          for k, w in enumerate(windows)]
+    con = analysis.probe_overlap(geo)
+    co = coordination.engine_coordination(pack, [_page_floor(plan.box)], gap=CONTACT_GAP)
+    ori = analysis.orientation(pack)
+    box_chk = analysis.floor_and_box(pack, y_top=plan.y_top)
+    eps_all = np.array([f["eps"] for f in fr])
+    res["pack"] = dict(
+        windows=fr, window_scale=wscale, eps=fr[0]["eps"], eps_se=fr[0]["eps_se"],
+        eps_mean=float(eps_all.mean()), eps_spread=float(eps_all.std()),
+        f_env=fr[0]["f_env"], f_env_se=fr[0]["f_env_se"], double=fr[0]["double"],
+        double_se=fr[0]["double_se"], z_mean=co["z_total"], z_elem=co["z_elem"],
+        rattlers=co["rattlers"], under_stable=co["under_stable"],
+        floor_contacts=int(co["wall"].sum()), contact_gap=CONTACT_GAP,
+        contact_method=co["method"], contacts_per_ring=co["total"].tolist(),
+        contact_pairs=co["pairs"], candidate_pairs=con["pairs"],
+        max_overlap=con["max_depth"], max_overlap_wall=con["max_depth"] / wall_t,
+        max_overlap_engine_wall=max_ov_engine / wall_t,
+        cos_mean=ori["mean"], cos_sem=ori["sem"], cos_sem_iso=ori["sem_iso"],
+        cos=ori["cos"].tolist(), lowest_probe=box_chk["min_lowest_probe"],
+        all_in_box=box_chk["all_in_box"], n_outside=box_chk["n_outside"])
+    timing["analysis"] = time.perf_counter() - t
+    return fr, ori
+
+
+def _figures(b, root, pr, pack, ori, plan, animation, timing):
+    """The figures of the ring, the pour and the pack (drawn while the sweep's child
+    finishes): {name: path}."""
+    out = plan.out
+    t = time.perf_counter()
+    # matplotlib (0.7 s to import) only where a figure is drawn: a refused or
+    # figure-less run, and the command line's checks, never load it
+    from ..output import figures
+    rv, rf, _ = surface_mesh(b, root, [-0.62] * 3, [0.62] * 3, 60)  # (area: mesh_n)
+    figs = dict(
+        ring=figures.ring_views(rv, rf, os.path.join(out, "ring.png")),
+        kinetic_energy=figures.kinetic_energy(
+            pr.t, pr.ke, plan.protocol.phases(), plan.protocol.dt,
+            os.path.join(out, "kinetic_energy.png")),
+        pack=figures.pack_by_height(pack.positions, pack.rotations(), pack.shell,
+                                    pack.box, os.path.join(out, "pack.png")),
+        orientation=figures.orientation_histogram(
+            ori["cos"], os.path.join(out, "orientation.png")))
+    if animation:
+        figs["animation"] = figures.pour_animation(
+            pr.frames, pr.frame_t, pack.shell, pack.box, os.path.join(out, "pour.gif"))
+    timing["figures"] = time.perf_counter() - t
+    return figs
+
+
+def _sweep(sweeper, fr, wall_t, write_figures, figs, out, res, timing):
+    """Step 6: the wall-thickness sweep, eps(t) = 1 - f_env s(t), from the sweep's child
+    (``res["sweep"]``, ``res["sweep_source"]``) and its figure (``res["figures"]``, with
+    ``figs``)."""
+    t = time.perf_counter()
+    fractions = sweeper.rows()
+    timing["sweep_wait"] = time.perf_counter() - t
+    rows = analysis.sweep_voidage(fractions, fr[0]["f_env"], fr[0]["f_env_se"])
+    res["sweep"] = rows
+    # read from the results cache (an earlier run's rows, the same bits) or computed now
+    res["sweep_source"] = "cache" if sweeper.from_cache else "computed"
+    if write_figures:
+        from ..output import figures
+
+        t = time.perf_counter()
+        figs["voidage_sweep"] = figures.voidage_sweep(
+            rows, fr[0]["eps"], wall_t / 1.0, os.path.join(out, "voidage_sweep.png"))
+        timing["figures"] += time.perf_counter() - t
+        res["figures"] = {k: os.path.abspath(v) for k, v in figs.items()}
 
 
 def check_stages(stages, name="stages"):
@@ -348,70 +393,3 @@ _RESULT_KEYS = ("config", "certificate", "element", "particle", "pour", "pack_fi
                 "sweep", "sweep_source", "figures", "timing", "results_json")
 
 
-def results_table(res):
-    """The page's Results table with our numbers beside the page's, as text."""
-    c, p, k, s = res["certificate"], res["particle"], res["pack"], res["pour"]
-    sw = {round(r["t_over_d"], 4): r for r in res["sweep"]}
-    thin, thick = sw.get(0.024), sw.get(0.16)
-    P = PAGE
-    rows = [
-        ("certified tree: exterior probes violating Eq. 1",
-         f"{100 * c['certified']['violating']:.2f}% (min slack {c['certified']['min_slack']:+.1e})",
-         "0.00% (min slack +1.9e-12)"),
-        ("sign-exact tree, same solid: violations",
-         f"{100 * c['sign_exact']['violating']:.2f}% (worst ratio "
-         f"{c['sign_exact']['worst_ratio']:.4f})", "24.68% (worst ratio 0.7071)"),
-        ("ring solid volume / envelope cylinder",
-         f"{p['volume_fraction']:.6f} (V = {p['volume']:.8f} +- {p['volume_error']:.1e})",
-         "0.3413 (V = 0.268032)"),
-        ("surface area, specific surface",
-         f"{p['surface_area']:.3f} D^2, {p['specific_surface']:.2f} /D (mc {p['mesh_n']}^3)",
-         "6.561 D^2, 8.35 /D"),
-        ("probe spacing (median) vs feature/3",
-         f"{p['probe_spacing_median']:.4f} vs {p['min_feature'] / 3:.4f} "
-         f"({p['shell_points']} probes)", "0.0369 vs 0.0400"),
-        ("bed voidage eps",
-         f"{k['eps']:.3f} +- {k['eps_se']:.3f} (MC); {k['eps_spread']:.4f} over 3 windows",
-         "0.800 (0.0011 over three bulk windows)"),
-        ("envelope packing fraction f_env", f"{k['f_env']:.3f} +- {k['f_env_se']:.3f}",
-         "0.582"),
-        ("mean coordination number (with the floor)",
-         f"{k['z_mean']:.2f} ({k['z_elem']:.2f} ring-ring), {k['rattlers']} rattlers "
-         f"(engine contacts, gap < {k['contact_gap']:g} D)",
-         "3.75, 0 rattlers (probe strictly inside, in an engine overlapping 23% of the wall)"),
-        ("ring-axis |cos theta|",
-         f"{k['cos_mean']:.3f} +- {k['cos_sem']:.3f} (isotropic 0.500 +- {k['cos_sem_iso']:.3f})",
-         "0.526 +- 0.042 (isotropic 0.500)"),
-        ("residual kinetic energy after the quench",
-         f"{s['ke_ratio']:.1e} of a one-diameter bed lift", "4.7e-04 of a one-diameter bed lift"),
-        ("max contact overlap (probe depth); doubly-covered",
-         f"{k['max_overlap']:.4f} = {100 * k['max_overlap_wall']:.0f}% of the wall; "
-         f"{100 * k['double']:.4f}%", "0.027 = 23% of the wall; 0.0092%"),
-        ("  engine's compute_overlaps()", f"{s['max_overlap_engine']:.4f} = "
-         f"{100 * k['max_overlap_engine_wall']:.0f}% of the wall", "-"),
-        ("lowest probe (floor y = 0); all in box",
-         f"{k['lowest_probe']:+.4f}; {k['all_in_box']}", "-"),
-        ("eps predicted at t/D = 0.024 / 0.16",
-         (f"{thin['eps']:.3f} / {thick['eps']:.3f} (s by quadrature, err "
-          f"{max(thin['s_err'], thick['s_err']):.1e})") if thin and thick else "n/a",
-         "0.957 / 0.743 vs published 0.90-0.95 / 0.74-0.78"),
-        ("pour", f"{s['steps']} steps in {s['seconds']:.1f} s ({s['ms_per_step']:.2f} ms/step "
-                 f"after the first step, which took {s['first_step_seconds']:.1f} s)",
-         "3700 steps in 299 s (81 ms/step)"),
-        ("total runtime", f"{res['timing']['total']:.1f} s", f"{P['runtime_s']:.0f} s"),
-    ]
-    fl = res.get("flow")
-    if fl is not None:
-        rows[-1:-1] = [
-            (f"permeability k (lattice Boltzmann, D/{fl['resolution']:g})",
-             f"{fl['k_D2']:.4g} D^2 (eps {fl['eps']:.3f} on the lattice, Re {fl['Re']:.2g}, "
-             f"{fl['steps']} steps)", "-"),
-            ("dP/L / Ergun viscous term (Sauter d; envelope d)",
-             f"{fl['ergun_ratio_sauter']:.3f}; {fl['ergun_ratio_envelope']:.3f} (Kozeny "
-             f"constant {fl['kozeny']:.2f})", "-")]
-    w0 = max(len(r[0]) for r in rows)
-    w1 = max(len(r[1]) for r in rows)
-    lines = [f"{'claim':<{w0}}  {'peclet (this run)':<{w1}}  the page",
-             "-" * (w0 + w1 + 40)]
-    lines += [f"{a:<{w0}}  {b_:<{w1}}  {c_}" for a, b_, c_ in rows]
-    return "\n".join(lines)
