@@ -18,13 +18,10 @@ FUNCTION_LINES = 150
 KERNEL_PARAMS = 12
 
 LARGE_MODULES = {
-    "peclet/dem/solver.py": 673,
-    "peclet/packing/output/export.py": 677,
 }
 LONG_FUNCTIONS = {
     "peclet/core/geom/kernels.py:leaf_eval": 180,
     "peclet/core/geom/quadrature/breaks.py:_scan": 221,
-    "peclet/packing/page/pipeline.py:run": 258,
 }
 WIDE_KERNELS = {
     "peclet/core/geom/pruning.py:_prune_block": 16,
@@ -45,15 +42,6 @@ WIDE_KERNELS = {
     "peclet/dem/narrowphase.py:_scan": 26,
     "peclet/dem/narrowphase.py:_sphere_bound": 20,
     "peclet/dem/narrowphase.py:narrow_workers": 17,
-    "peclet/dem/solver.py:_pos_sweep": 16,
-    "peclet/dem/solver.py:_vel_setup": 26,
-    "peclet/dem/solver.py:_vel_sweep": 23,
-    "peclet/dem/solver.py:_warm_bodies": 15,
-    "peclet/dem/solver.py:solve_velocities_colored": 13,
-    "peclet/flow/solver.py:_link_momentum": 15,
-    "peclet/flow/solver.py:_macro": 19,
-    "peclet/flow/solver.py:_step": 22,
-    "peclet/packing/analysis/geometry.py:_cover_kernel": 13,
 }
 
 
