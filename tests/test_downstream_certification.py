@@ -391,3 +391,114 @@ def test_lammps_wall_is_made_of_the_wall_coefficients():
     finally:
         be.close()
     assert r.status == "passed" and r.worst < 1e-5, r.counterexample
+
+
+# ---------------------------------------------------------------------------- Kratos DEM
+# The impact family (Chung & Ooi) on Kratos DEM (KratosMultiphysics + KratosDEMApplication
+# 10.4.4), through the adapter of examples/downstream/kratos_dem in its own venv
+# (PECLET_KRATOS_VENV, `pip install KratosMultiphysics KratosDEMApplication`); skipped with the
+# reason without it. Both laws pass every test, so the project has no xfails file.
+KRATOS = os.path.join(DOWNSTREAM, "kratos_dem")
+KRATOS_VENV = "PECLET_KRATOS_VENV"
+KRATOS_PACKAGES = "KratosMultiphysics KratosDEMApplication numpy"
+
+
+@pytest.mark.parametrize("law", ["hertz", "linear"])
+def test_kratos_passes_every_test(law, tmp_path):
+    venv = side_venv(KRATOS_VENV, KRATOS_PACKAGES)
+    report = tmp_path / "report.json"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PECLET_")}
+    env.update({KRATOS_VENV: venv, "PECLET_KRATOS_LAW": law})
+    done = subprocess.run([sys.executable, "-m", "pytest", KRATOS, "--peclet-certify",
+                           "--peclet-profile", "smoke", "--peclet-report", str(report),
+                           "-p", "no:cacheprovider", "-q"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    got = load_report(report)
+    assert _by_test(got) == {t: "passed" for t in CHUNG_OOI}, _by_test(got)
+    assert got["waivers"] == [] and not os.path.exists(os.path.join(KRATOS, "xfails.toml"))
+
+
+def kratos_impact(venv, law="hertz", wall_stiffer=None):
+    import peclet_verify.wire as fw
+    from peclet_verify.impact.backend import SubprocessImpactBackend
+    env = {"PECLET_VERIFY_DIR": os.path.dirname(fw.__file__), "OMP_NUM_THREADS": "1"}
+    if wall_stiffer is not None:
+        env["PECLET_KRATOS_WALL_STIFFER"] = repr(wall_stiffer)
+    return SubprocessImpactBackend([os.path.join(venv, "bin", "python"),
+                                    os.path.join(KRATOS, "kratos_child.py"), law], env=env,
+                                   timeout=300)
+
+
+@pytest.mark.parametrize("law", ["hertz", "linear"])
+def test_kratos_wall_modulus_is_mixed_into_the_contact(law):
+    """Kratos mixes a DEM-FEM wall's own modulus into E* (a harmonic mean, unlike LAMMPS's
+    wall): a wall of the ball's modulus makes test 2's contact 2^(2/5) (Hertz) or sqrt(2)
+    (linear) times deeper than the rigid plane's; the adapter's wall of 1e12 x the modulus
+    is the rigid plane."""
+    from peclet_verify.impact.cases import hertz_elastic, hooke_elastic
+    from peclet_verify.impact.strategies import case2
+    venv = side_venv(KRATOS_VENV, KRATOS_PACKAGES)
+    case = case2("aluminium_alloy_t2", 0.2)
+    m, r, es = case.effective()
+    ref = (hertz_elastic(m, r, es, case.approach) if law == "hertz"
+           else hooke_elastic(m, case.kn, case.approach))["delta_max"]
+    depth = {}
+    for ratio in (1.0, 1e12):
+        be = kratos_impact(venv, law, ratio)
+        try:
+            depth[ratio] = be.impact(case)["delta_max"] / ref
+        finally:
+            be.close()
+    assert depth[1.0] == pytest.approx(2.0 ** (0.4 if law == "hertz" else 0.5), rel=1e-5)
+    assert depth[1e12] == pytest.approx(1.0, rel=1e-5)
+
+
+@pytest.mark.parametrize("law", ["hertz", "linear"])
+def test_kratos_spin_deficit_is_the_wall_torque_arm(law):
+    """Kratos's torque arm at a wall is R - delta: test 5's spin change (polyethylene at
+    5 m/s, sliding throughout) falls short by the force-weighted mean overlap over R, got here
+    by integrating the closed-form elastic impact, while v_y is exact."""
+    from peclet_verify.impact.properties import judge
+    from peclet_verify.impact.strategies import case5
+    venv = side_venv(KRATOS_VENV, KRATOS_PACKAGES)
+    case = case5("polyethylene", 10.5)
+    m, r, es = case.effective()
+    x, u, dt, impulse, moment = 0.0, case.approach, case.dt / 50, 0.0, 0.0
+    while True:                      # semi-implicit Euler, 25000 steps a contact time
+        f = 0.0 if x <= 0.0 else (4.0 / 3.0 * es * math.sqrt(r) * x ** 1.5 if law == "hertz"
+                                  else case.kn * x)
+        u -= f / m * dt
+        x += u * dt
+        impulse, moment = impulse + f * dt, moment + f * x * dt
+        if x <= 0.0 and u < 0.0:
+            break
+    be = kratos_impact(venv, law)
+    try:
+        res = judge(be, case)
+    finally:
+        be.close()
+    assert res.status == "passed" and res.details["v0_y"] < 1e-9, res.details
+    assert res.details["w0_z"] == pytest.approx(moment / impulse / r, rel=1e-3)
+    assert res.details["w0_z"] > 0.015           # 1.9 % (linear), 2.2 % (Hertz)
+
+
+def test_kratos_project_runs_without_peclet(tmp_path):
+    """`kratos_child.py LAW --project DIR` writes a case as a Kratos DEM project that Kratos's
+    own DEM_analysis_stage runs with no peclet; its GiD result has the asked rebound."""
+    import peclet_verify.wire as fw
+    from peclet_verify.impact.strategies import case3
+    python = os.path.join(side_venv(KRATOS_VENV, KRATOS_PACKAGES), "bin", "python")
+    case = case3("aluminium_oxide", 0.5, 3.9)
+    folder = tmp_path / "project"
+    env = dict(os.environ, PECLET_VERIFY_DIR=os.path.dirname(fw.__file__), OMP_NUM_THREADS="1")
+    subprocess.run([python, os.path.join(KRATOS, "kratos_child.py"), "hertz", "--project",
+                    str(folder)], input=case.to_json(), env=env, text=True, check=True,
+                   capture_output=True, timeout=300)
+    done = subprocess.run([python, "-m", "KratosMultiphysics.DEMApplication.DEM_analysis_stage"],
+                          cwd=folder, env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    res = (folder / "impact_Post_Files" / "impact.post.res").read_text()
+    velocity = res.rsplit('Result "VELOCITY"', 1)[1].split("Values", 1)[1].split()
+    assert velocity[0] == "1"                  # node 1 (ball 0): v_x v_y v_z
+    assert -float(velocity[1]) / case.approach == pytest.approx(case.e, abs=1e-3)
