@@ -187,7 +187,7 @@ def test_near_tangent_line_finds_its_run_past_the_halving_cap():
     whose tangent point lies in the span must now report its two roots."""
     from peclet.core.geom import kernels as K
     from peclet.core.geom.quadrature.constants import LINE_EXTRA_LOOSE
-    from peclet.core.geom.quadrature.line_search import line_roots
+    from peclet.core.geom.quadrature.line_search import Line, line_roots
     t = _TURNED_TUBE
     b = geom.SceneBuilder()
     r = b.add_leaf("hollow_cylinder", t["params"], translation=t["translation"],
@@ -207,8 +207,8 @@ def test_near_tangent_line_finds_its_run_past_the_halving_cap():
             if not (x0 + 1e-3 < s * axis[0] < x1 - 1e-3 and abs(s) < half - 1e-3):
                 continue
             roots, leaves = np.empty(128), np.empty(128)
-            nr, inside = line_roots(P, 0, 2, 1, z_low + depth, y, x0, x1, LINE_EXTRA_LOOSE, st,
-                                    roots, leaves, 0)
+            nr, inside = line_roots(Line(P, 0, 2, 1, z_low + depth, y, st), x0, x1,
+                                    LINE_EXTRA_LOOSE, roots, leaves, 0)
             checked += 1
             if nr != 2 or inside:
                 missed.append((depth, y, nr))

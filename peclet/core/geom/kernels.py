@@ -94,6 +94,134 @@ def _segment2(px, py, ax, ay, bx, by):
 
 
 @njit(cache=True)
+def _box(L, j, x, y, z):
+    """box: half extents hx, hy, hz (features 0..5: the faces +x, -x, +y, -y, +z, -z).
+    Returns (phi, gx, gy, gz, feature), as :func:`leaf_eval`."""
+    hx = L[j, 0]
+    hy = L[j, 1]
+    hz = L[j, 2]
+    qx = abs(x) - hx
+    qy = abs(y) - hy
+    qz = abs(z) - hz
+    if qx >= qy and qx >= qz:
+        feat = 0 if x >= 0.0 else 1
+    elif qy >= qz:
+        feat = 2 if y >= 0.0 else 3
+    else:
+        feat = 4 if z >= 0.0 else 5
+    mx = qx if qx > 0.0 else 0.0
+    my = qy if qy > 0.0 else 0.0
+    mz = qz if qz > 0.0 else 0.0
+    outside = math.sqrt(mx * mx + my * my + mz * mz)
+    if outside > 0.0:
+        return (outside, _sgn(x) * mx / outside, _sgn(y) * my / outside,
+                _sgn(z) * mz / outside, feat)
+    if feat < 2:
+        return qx, _sgn(x), 0.0, 0.0, feat
+    if feat < 4:
+        return qy, 0.0, _sgn(y), 0.0, feat
+    return qz, 0.0, 0.0, _sgn(z), feat
+
+
+@njit(cache=True)
+def _capped_cone(L, j, x, y, z):
+    """capped_cone about y: rBottom at y=-h, rTop at y=+h, h."""
+    r1 = L[j, 0]
+    r2 = L[j, 1]
+    h = L[j, 2]
+    rho, ex, ez = _radial(x, z)
+    # distance to the three profile segments in the (rho, y) half-plane
+    d2, vx, vy = _segment2(rho, y, 0.0, -h, r1, -h)
+    nx, ny = 0.0, -1.0
+    feat = 0
+    e2, wx, wy = _segment2(rho, y, r1, -h, r2, h)
+    if e2 < d2:
+        d2, vx, vy = e2, wx, wy
+        sl = math.sqrt(4.0 * h * h + (r2 - r1) * (r2 - r1))
+        nx, ny = 2.0 * h / sl, -(r2 - r1) / sl
+        feat = 1
+    e2, wx, wy = _segment2(rho, y, r2, h, 0.0, h)
+    if e2 < d2:
+        d2, vx, vy = e2, wx, wy
+        nx, ny = 0.0, 1.0
+        feat = 2
+    inside = abs(y) <= h and 2.0 * h * (rho - r1) <= (r2 - r1) * (y + h)
+    d = math.sqrt(d2)
+    if d > 0.0:
+        s = -1.0 if inside else 1.0
+        gr = s * vx / d
+        gy = s * vy / d
+    else:
+        gr = nx
+        gy = ny
+    if inside:
+        d = -d
+    return d, gr * ex, gy, gr * ez, feat
+
+
+@njit(cache=True)
+def _ellipsoid(L, j, x, y, z):
+    """ellipsoid: rx, ry, rz (a bound, not the distance)."""
+    rx = L[j, 0]
+    ry = L[j, 1]
+    rz = L[j, 2]
+    ax = x / rx
+    ay = y / ry
+    az = z / rz
+    bx = ax / rx
+    by = ay / ry
+    bz = az / rz
+    k0 = math.sqrt(ax * ax + ay * ay + az * az)
+    k1 = math.sqrt(bx * bx + by * by + bz * bz)
+    if k0 < 1e-100 or k1 < 1e-100:
+        # at (or within 1e-100 of) the centre; k1^3 below would underflow to 0
+        return -min(rx, min(ry, rz)), 1.0, 0.0, 0.0, 0
+    v = k0 * (k0 - 1.0) / k1
+    # grad k0 = (x/r^2)/k0 = b/k0; grad k1 = (x/r^4)/k1 = (b/r^2)/k1
+    c0 = (2.0 * k0 - 1.0) / (k0 * k1)
+    c1 = k0 * (k0 - 1.0) / (k1 * k1 * k1)
+    return (v, c0 * bx - c1 * bx / (rx * rx), c0 * by - c1 * by / (ry * ry),
+            c0 * bz - c1 * bz / (rz * rz), 0)
+
+
+@njit(cache=True)
+def _superquadric(L, j, x, y, z):
+    """superquadric: rx, ry, rz, e (a bound, not the distance)."""
+    rx = L[j, 0]
+    ry = L[j, 1]
+    rz = L[j, 2]
+    m = 2.0 / L[j, 3]
+    rmin = min(rx, min(ry, rz))
+    ax = abs(x) / rx
+    ay = abs(y) / ry
+    az = abs(z) / rz
+    amax = max(ax, max(ay, az))
+    if amax == 0.0:
+        return -rmin, 1.0, 0.0, 0.0, 0
+    g = (ax / amax) ** m + (ay / amax) ** m + (az / amax) ** m
+    f = amax * g ** (1.0 / m)
+    # n = grad F, homogeneous of degree 0 so never zero away from the origin
+    tx = ax / f
+    ty = ay / f
+    tz = az / f
+    nx = tx ** (m - 1.0) * _sgn(x) / rx
+    ny = ty ** (m - 1.0) * _sgn(y) / ry
+    nz = tz ** (m - 1.0) * _sgn(z) / rz
+    nn2 = nx * nx + ny * ny + nz * nz
+    nn = math.sqrt(nn2)
+    d = (f - 1.0) / nn
+    if d < -rmin:
+        return -rmin, 0.0, 0.0, 0.0, 1
+    # grad d = n/|n| - (F - 1) H n / |n|^3, H the Hessian of F (see the leaf table docs)
+    k = (m - 1.0) / f
+    hx = k * tx ** (m - 2.0) / rx * (nx / rx - _sgn(x) * ax * nn2 / f)
+    hy = k * ty ** (m - 2.0) / ry * (ny / ry - _sgn(y) * ay * nn2 / f)
+    hz = k * tz ** (m - 2.0) / rz * (nz / rz - _sgn(z) * az * nn2 / f)
+    c = (f - 1.0) / (nn2 * nn)
+    return d, nx / nn - c * hx, ny / nn - c * hy, nz / nn - c * hz, 0
+
+
+@njit(cache=True)
 def leaf_eval(kind, L, j, x, y, z):
     """Value, gradient and feature of leaf row ``j`` of ``L`` at canonical point (x, y, z).
 
@@ -102,6 +230,8 @@ def leaf_eval(kind, L, j, x, y, z):
     tube; 0 for smooth leaves): it changes exactly across the leaf's own creases, which the
     quadrature uses as breakpoints. An unknown kind returns NaN: the builder refuses unknown
     kinds, so a NaN here means a corrupted table, and the caller's finite check reports it.
+    The longer formulas are functions of their own (:func:`_box`, :func:`_capped_cone` and
+    the bounds :func:`_ellipsoid`, :func:`_superquadric`).
     """
     if kind == 1:  # sphere
         r = L[j, 0]
@@ -123,30 +253,7 @@ def leaf_eval(kind, L, j, x, y, z):
         return d, gr * ex, gw * _sgn(y), gr * ez, feat
 
     if kind == 3:  # box
-        hx = L[j, 0]
-        hy = L[j, 1]
-        hz = L[j, 2]
-        qx = abs(x) - hx
-        qy = abs(y) - hy
-        qz = abs(z) - hz
-        if qx >= qy and qx >= qz:
-            feat = 0 if x >= 0.0 else 1
-        elif qy >= qz:
-            feat = 2 if y >= 0.0 else 3
-        else:
-            feat = 4 if z >= 0.0 else 5
-        mx = qx if qx > 0.0 else 0.0
-        my = qy if qy > 0.0 else 0.0
-        mz = qz if qz > 0.0 else 0.0
-        outside = math.sqrt(mx * mx + my * my + mz * mz)
-        if outside > 0.0:
-            return (outside, _sgn(x) * mx / outside, _sgn(y) * my / outside,
-                    _sgn(z) * mz / outside, feat)
-        if feat < 2:
-            return qx, _sgn(x), 0.0, 0.0, feat
-        if feat < 4:
-            return qy, 0.0, _sgn(y), 0.0, feat
-        return qz, 0.0, 0.0, _sgn(z), feat
+        return _box(L, j, x, y, z)
 
     if kind == 4:  # hollow_cylinder_shell about z: rOuter, rInner, height
         rho, ex, ey = _radial(x, y)
@@ -178,94 +285,14 @@ def leaf_eval(kind, L, j, x, y, z):
             return n - L[j, 1], ga * ex, y / n, ga * ez, 0
         return -L[j, 1], ex, 0.0, ez, 0
 
-    if kind == 7:  # capped cone about y: rBottom at y=-h, rTop at y=+h, h
-        r1 = L[j, 0]
-        r2 = L[j, 1]
-        h = L[j, 2]
-        rho, ex, ez = _radial(x, z)
-        # distance to the three profile segments in the (rho, y) half-plane
-        d2, vx, vy = _segment2(rho, y, 0.0, -h, r1, -h)
-        nx, ny = 0.0, -1.0
-        feat = 0
-        e2, wx, wy = _segment2(rho, y, r1, -h, r2, h)
-        if e2 < d2:
-            d2, vx, vy = e2, wx, wy
-            sl = math.sqrt(4.0 * h * h + (r2 - r1) * (r2 - r1))
-            nx, ny = 2.0 * h / sl, -(r2 - r1) / sl
-            feat = 1
-        e2, wx, wy = _segment2(rho, y, r2, h, 0.0, h)
-        if e2 < d2:
-            d2, vx, vy = e2, wx, wy
-            nx, ny = 0.0, 1.0
-            feat = 2
-        inside = abs(y) <= h and 2.0 * h * (rho - r1) <= (r2 - r1) * (y + h)
-        d = math.sqrt(d2)
-        if d > 0.0:
-            s = -1.0 if inside else 1.0
-            gr = s * vx / d
-            gy = s * vy / d
-        else:
-            gr = nx
-            gy = ny
-        if inside:
-            d = -d
-        return d, gr * ex, gy, gr * ez, feat
+    if kind == 7:  # capped_cone
+        return _capped_cone(L, j, x, y, z)
 
-    if kind == 8:  # ellipsoid: rx, ry, rz (bound)
-        rx = L[j, 0]
-        ry = L[j, 1]
-        rz = L[j, 2]
-        ax = x / rx
-        ay = y / ry
-        az = z / rz
-        bx = ax / rx
-        by = ay / ry
-        bz = az / rz
-        k0 = math.sqrt(ax * ax + ay * ay + az * az)
-        k1 = math.sqrt(bx * bx + by * by + bz * bz)
-        if k0 < 1e-100 or k1 < 1e-100:
-            # at (or within 1e-100 of) the centre; k1^3 below would underflow to 0
-            return -min(rx, min(ry, rz)), 1.0, 0.0, 0.0, 0
-        v = k0 * (k0 - 1.0) / k1
-        # grad k0 = (x/r^2)/k0 = b/k0; grad k1 = (x/r^4)/k1 = (b/r^2)/k1
-        c0 = (2.0 * k0 - 1.0) / (k0 * k1)
-        c1 = k0 * (k0 - 1.0) / (k1 * k1 * k1)
-        return (v, c0 * bx - c1 * bx / (rx * rx), c0 * by - c1 * by / (ry * ry),
-                c0 * bz - c1 * bz / (rz * rz), 0)
+    if kind == 8:  # ellipsoid (a bound)
+        return _ellipsoid(L, j, x, y, z)
 
-    if kind == 9:  # superquadric: rx, ry, rz, e (bound)
-        rx = L[j, 0]
-        ry = L[j, 1]
-        rz = L[j, 2]
-        m = 2.0 / L[j, 3]
-        rmin = min(rx, min(ry, rz))
-        ax = abs(x) / rx
-        ay = abs(y) / ry
-        az = abs(z) / rz
-        amax = max(ax, max(ay, az))
-        if amax == 0.0:
-            return -rmin, 1.0, 0.0, 0.0, 0
-        g = (ax / amax) ** m + (ay / amax) ** m + (az / amax) ** m
-        f = amax * g ** (1.0 / m)
-        # n = grad F, homogeneous of degree 0 so never zero away from the origin
-        tx = ax / f
-        ty = ay / f
-        tz = az / f
-        nx = tx ** (m - 1.0) * _sgn(x) / rx
-        ny = ty ** (m - 1.0) * _sgn(y) / ry
-        nz = tz ** (m - 1.0) * _sgn(z) / rz
-        nn2 = nx * nx + ny * ny + nz * nz
-        nn = math.sqrt(nn2)
-        d = (f - 1.0) / nn
-        if d < -rmin:
-            return -rmin, 0.0, 0.0, 0.0, 1
-        # grad d = n/|n| - (F - 1) H n / |n|^3, H the Hessian of F (see the leaf table docs)
-        k = (m - 1.0) / f
-        hx = k * tx ** (m - 2.0) / rx * (nx / rx - _sgn(x) * ax * nn2 / f)
-        hy = k * ty ** (m - 2.0) / ry * (ny / ry - _sgn(y) * ay * nn2 / f)
-        hz = k * tz ** (m - 2.0) / rz * (nz / rz - _sgn(z) * az * nn2 / f)
-        c = (f - 1.0) / (nn2 * nn)
-        return d, nx / nn - c * hx, ny / nn - c * hy, nz / nn - c * hz, 0
+    if kind == 9:  # superquadric (a bound)
+        return _superquadric(L, j, x, y, z)
 
     if kind == 10:  # half_space: unit normal n, offset
         nx = L[j, 0]

@@ -165,15 +165,42 @@ def _same_rows(out, begin, end, rows, n):
     return True
 
 
+class _Tree(NamedTuple):
+    """The program a bake prunes: ``ops`` (n, 2) int32 and the leaf tables ``leaf_kind`` (L,)
+    int32 and ``leaf_reals`` (L, LEAF_COLS) float64 in the format of :mod:`kernels`, ``lip``
+    (L,) bool (the leaf is 1-Lipschitz in the world frame), the program's rows
+    ``[op_begin, op_end)``."""
+    ops: np.ndarray
+    leaf_kind: np.ndarray
+    leaf_reals: np.ndarray
+    lip: np.ndarray
+    op_begin: int
+    op_end: int
+
+
+class _Scratch(NamedTuple):
+    """One block's working arrays, for a program of ``nfull`` rows: the pruned ``rows``
+    (nfull, 2) int32, the stack of pending operands (their value ranges ``lo``, ``hi``
+    (nfull,) float64, in the program's length unit, and the first of their rows ``start``
+    (nfull,) int64) and the evaluator's stack ``st`` (MAX_STACK, STACK_COLS)."""
+    rows: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    start: np.ndarray
+    st: np.ndarray
+
+
 @njit(cache=True)
-def _prune_block(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, cx, cy, cz, rho, tol0,
-                 rows, lo, hi, start, st):
-    """Write the pruned program of the block centred at c into ``rows``; return its length.
+def _prune_block(tree, scratch, cx, cy, cz, rho, tol0):
+    """Write the pruned program of ``tree`` (a :class:`_Tree`) for the block centred at c
+    into ``scratch.rows``; return its length.
 
     ``rho`` is the inflated half-diagonal, ``tol0`` the magnitude of the lattice coordinates.
     The stack holds, per pending operand, its value range [lo, hi] and the first of its rows;
     its rows run to the next operand's first row (or the end): postfix keeps them contiguous.
     """
+    ops, leaf_kind, leaf_reals, lip, op_begin, op_end = tree
+    rows, lo, hi, start, st = scratch
     L = leaf_reals
     sp = 0
     n = 0
@@ -227,8 +254,12 @@ def _prune_block(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, cx, cy, cz, 
 
 
 @njit(cache=True)
-def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims):
-    """(ops, block_range): see :func:`bake_pruned`. Sequential, so deterministic."""
+def _bake(tree, origin, block, dims):
+    """(ops, block_range) of ``tree`` (a :class:`_Tree`): see :func:`bake_pruned`.
+    Sequential, so deterministic."""
+    ops = tree.ops
+    op_begin = tree.op_begin
+    op_end = tree.op_end
     nfull = op_end - op_begin
     nx = dims[0]
     ny = dims[1]
@@ -251,10 +282,8 @@ def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims
     seen_key[k] = _hash_rows(out, nfull)
     seen_val[k] = -1
     rows = np.empty((nfull, 2), np.int32)
-    lo = np.empty(nfull)
-    hi = np.empty(nfull)
-    start = np.empty(nfull, np.int64)
-    st = np.empty((K.MAX_STACK, K.STACK_COLS))
+    scratch = _Scratch(rows, np.empty(nfull), np.empty(nfull), np.empty(nfull, np.int64),
+                       np.empty((K.MAX_STACK, K.STACK_COLS)))
     rho = block * (math.sqrt(3.0) / 2.0) * (1.0 + RHO_REL)
     tol0 = 1.0 + abs(origin[0]) + abs(origin[1]) + abs(origin[2])
     b = 0
@@ -264,8 +293,7 @@ def _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block, dims
             cy = origin[1] + (jy + 0.5) * block
             for ix in range(nx):
                 cx = origin[0] + (ix + 0.5) * block
-                n = _prune_block(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, cx, cy,
-                                 cz, rho, tol0, rows, lo, hi, start, st)
+                n = _prune_block(tree, scratch, cx, cy, cz, rho, tol0)
                 h = _hash_rows(rows, n)
                 slot = _seen_slot(seen_key, seen_val, h)
                 first = seen_val[slot]                  # -2: not seen
@@ -335,8 +363,8 @@ def bake_pruned(program, origin, block, dims) -> PrunedPrograms:
                                   (op_begin, op_end))
     lip = np.array([LEAVES_BY_KIND[int(k)].lipschitz if int(k) in LEAVES_BY_KIND else False
                     for k in leaf_kind], dtype=np.bool_)
-    out, block_range = _bake(ops, leaf_kind, leaf_reals, lip, op_begin, op_end, origin, block,
-                             dims)
+    out, block_range = _bake(_Tree(ops, leaf_kind, leaf_reals, lip, op_begin, op_end), origin,
+                             block, dims)
     ob = np.array([origin[0], origin[1], origin[2], block, 1.0 / block])
     return PrunedPrograms(out, block_range, ob, dims, 0, op_end - op_begin)
 

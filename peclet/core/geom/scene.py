@@ -11,6 +11,7 @@ force returns.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -42,8 +43,41 @@ def _image_phi(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, i, x, y, z, 
     return s * v
 
 
+class Images(NamedTuple):
+    """A scene's trees and their placed images, what :func:`_image_phi` reads: the
+    concatenated programs ``ops`` (n, 2) int32, ``lk`` (L,) int32, ``lr`` (L, LEAF_COLS)
+    float64 and ``ranges`` (n_programs, 2) int64 of :func:`.program.concatenate`; per image
+    (an instance, or one of its periodic copies) its instance ``img_inst`` (n_img,) int64 and
+    frame ``img_frame`` (n_img, 13) float64 (world translation (3), rotation R (9,
+    row-major), scale: world = t + s R local); per instance its program ``inst_prog``
+    (n_inst,) int64."""
+    ops: np.ndarray
+    lk: np.ndarray
+    lr: np.ndarray
+    ranges: np.ndarray
+    img_inst: np.ndarray
+    img_frame: np.ndarray
+    inst_prog: np.ndarray
+
+
+class Bvh(NamedTuple):
+    """What prunes the scene query: the images evaluated at every point ``always`` (int64,
+    the uncertified ones), the certified images in leaf order ``order`` (int64), the
+    hierarchy's node boxes ``bvh_box`` (m, 7) (centre lo (3), centre hi (3), max radius) and
+    children ``bvh_child`` (m, 2) int64 (see :func:`_build_bvh`), each image's bounding ball
+    ``ball`` (n_img, 4) (world centre, radius) and the tolerance ``tol`` (world length) a
+    lower bound must clear to skip."""
+    always: np.ndarray
+    order: np.ndarray
+    bvh_box: np.ndarray
+    bvh_child: np.ndarray
+    ball: np.ndarray
+    tol: float
+
+
 @njit(cache=True, parallel=True)
-def _scene_brute(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, points, out):
+def _scene_brute(images, points, out):
+    ops, lk, lr, ranges, img_inst, img_frame, inst_prog = images
     n = points.shape[0]
     nimg = img_inst.shape[0]
     nchunk = (n + K.CHUNK - 1) // K.CHUNK
@@ -72,9 +106,10 @@ def _node_lower_bound(bb, node, x, y, z):
 
 
 @njit(cache=True, parallel=True)
-def _scene_pruned(ops, lk, lr, ranges, img_inst, img_frame, inst_prog, always, order, bvh_box,
-                  bvh_child, ball, tol, points, out):
+def _scene_pruned(images, bvh, points, out):
     """BVH traversal; bvh_child[node] = (left, right) or (-1 - first, count) for a leaf."""
+    ops, lk, lr, ranges, img_inst, img_frame, inst_prog = images
+    always, order, bvh_box, bvh_child, ball, tol = bvh
     n = points.shape[0]
     nchunk = (n + K.CHUNK - 1) // K.CHUNK
     nnode = bvh_child.shape[0]
@@ -194,7 +229,6 @@ class Scene:
 
     def __init__(self, programs, inst_prog, frames, balls, certified, box, periodic):
         ops, lk, lr, ranges = concatenate(programs)
-        self._progs = (ops, lk, lr, ranges)
         self.box = box
         self.periodic = np.asarray(periodic, dtype=bool)
         shifts = [np.zeros(3)]
@@ -224,6 +258,10 @@ class Scene:
                                                               ids)
         rmax = float(self.ball[:, 3][np.isfinite(self.ball[:, 3])].max(initial=1.0))
         self.tol = 1e-9 * (1.0 + rmax)
+        self.images = Images(ops, lk, lr, ranges, self.img_inst, self.img_frame,
+                             self.inst_prog)
+        self.bvh = Bvh(self.always, self.order, self.bvh_box, self.bvh_child, self.ball,
+                       self.tol)
 
     @classmethod
     def from_builder(cls, builder, box=None, periodic=(False, False, False)):
@@ -278,12 +316,8 @@ class Scene:
         method = check_choice("method", method, ("pruned", "brute"))
         pts = self._wrap(points)
         out = np.empty(len(pts))
-        ops, lk, lr, ranges = self._progs
         if method == "brute":
-            _scene_brute(ops, lk, lr, ranges, self.img_inst, self.img_frame, self.inst_prog,
-                         pts, out)
+            _scene_brute(self.images, pts, out)
         else:
-            _scene_pruned(ops, lk, lr, ranges, self.img_inst, self.img_frame, self.inst_prog,
-                          self.always, self.order, self.bvh_box, self.bvh_child, self.ball,
-                          self.tol, pts, out)
+            _scene_pruned(self.images, self.bvh, pts, out)
         return out

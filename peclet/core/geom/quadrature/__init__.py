@@ -38,8 +38,9 @@ the rows are summed in a fixed order: results are bitwise identical at any threa
 
 Modules, in the order of the algorithm: :mod:`.constants` (every tuning constant, with why),
 :mod:`.line_search` (the certified 1-D line search and a line's moments), :mod:`.pieces`
-(knots, signatures, piece midpoints), :mod:`.breaks` (the break search, one scan serving the
-v-level and the u-level), :mod:`.cell_rule` (the cell rule and its error estimate),
+(knots, signatures, piece midpoints), :mod:`.levels` (what the break search's two levels
+differ in, its probe grid), :mod:`.breaks` (the break search, one scan serving the v-level and
+the u-level), :mod:`.cell_rule` (the cell rule and its error estimate),
 :mod:`.refine` (the octree refinement driver), :mod:`.api` (the public functions).
 """
 from .api import BodyProperties, body_properties, check_box, principal_axes, principal_frame

@@ -16,22 +16,24 @@ the rest as breaks. What differs by level is marked ``if U is None`` (v-level) i
 
 Numba cannot type a function calling itself, and the u-level probes the v-level, so the one
 scan is compiled as two functions (:func:`_instance`); the v-level one is compiled with ``U``
-omitted, which prunes the u-level branches before typing.
+omitted, which prunes the u-level branches before typing. The scan's helpers that differ by
+level take ``U`` too (None there: pruned alike); those that need no probe are in
+:mod:`.levels`.
 """
 import types
 from collections import namedtuple
 
 import numpy as np
 from numba import njit
+from numba.core import types as nbtypes
+from numba.extending import overload
 
-from .constants import (FLICKER, HASH_STEPS, I0, I1, I2, KINK_SLOPE, KINK_STEPS, R_EXTRA,
-                        R_MHI, R_MHP, R_MLO, R_MLP, R_MX, R_MY, R_UBRK, R_UFLAG, R_UKNOT,
-                        R_VBRK, R_VFLAG, R_VKNOT, R_XP, R_XT, TRACK_STEPS, U_BACKTRACKS,
-                        U_BREAK_STEPS, U_FLICKER, U_FOLLOW, U_NUDGE, U_WIDE, U_ZONE,
-                        U_ZONE_BREAKS, U_ZONE_MAX, V_NUDGE, V_PROBES)
+from .constants import (HASH_STEPS, I0, I1, KINK_SLOPE, KINK_STEPS, R_EXTRA, R_MHI, R_MHP,
+                        R_MLO, R_MLP, R_MX, R_MY, R_XP, R_XT, U_BACKTRACKS, U_BREAK_STEPS,
+                        U_FLICKER, U_FOLLOW, U_WIDE)
+from .levels import first_probes, level, next_probe, step_over
 from .line_search import mix
-from .pieces import (extrapolate, keep_seeds, knots, merge, narrowest_piece, piece_mids,
-                     sort_prefix, vsig)
+from .pieces import extrapolate, keep_seeds, merge, narrowest_piece, piece_mids, sort_prefix, vsig
 
 #: What only the u-level scan carries: the v-piece midpoints seen per u-piece (``seeds``
 #: (MAX_BREAKS, SEEDS), their counts ``nseed``) and the number of re-probes per probe interval
@@ -62,36 +64,11 @@ def _scan(C, u, steps, nex, U=None):
 
     Returns (m, hash of the sequence of piece signatures; v-level only); m = -1 on overflow.
     """
-    P, ak, iu, iv, a, b, lip, st, S = C.P, C.ak, C.iu, C.iv, C.a, C.b, C.lip, C.st, C.S
-    if U is None:
-        c0 = C.v0
-        c1 = C.v1
-        nk = knots(P, iv, iu, ak, c0, c1, u, u, I1, a, b, lip, st, S, R_VKNOT)
-        knot = S[R_VKNOT]
-        brk = S[R_VBRK]
-        flag = S[R_VFLAG]
-        nudge = V_NUDGE * (c1 - c0)
-        flicker = FLICKER * (c1 - c0)
-        step = FLICKER * (c1 - c0)
-        track = steps
-    else:
-        c0 = C.u0
-        c1 = C.u1
-        nk = knots(P, iu, iv, ak, c0, c1, C.v0, C.v1, I2, a, b, lip, st, S, R_UKNOT)
-        knot = S[R_UKNOT]
-        brk = S[R_UBRK]
-        flag = S[R_UFLAG]
-        U.nseed[:] = 0
-        nudge = U_NUDGE * (c1 - c0)
-        # without re-probes (the fallback after an overflow) the scan is the plain one:
-        # hash-level breaks while bisecting, and no probe just past a located break
-        track = TRACK_STEPS if U.reprobes > 0 else HASH_STEPS
-        flicker = (2.0 if U.reprobes > 0 else 1.0) * U_FLICKER * (c1 - c0)
-        step = U_FLICKER * (c1 - c0)
+    S = C.S
+    (nk, c0, c1, knot, brk, flag, nudge, flicker, step, track, zone,
+     zone_max) = level(C, U, u, steps)
     if nk < 0:
         return -1, _NO_HASH
-    zone = U_ZONE * (c1 - c0)
-    zone_max = U_ZONE_MAX * (c1 - c0)
     jump = step
     nshort = 0
     nback = 0
@@ -101,10 +78,11 @@ def _scan(C, u, steps, nex, U=None):
     flag[0] = 0.0
     m = I1
     # the structure at x (hash, count: v-level roots, u-level midpoints in S[R_MLO], inside
-    # length: v-level only) and at the next probe y (u-level midpoints in S[R_MY])
+    # length: v-level only), at the next probe y (S[R_MY]) and at a change (S[R_MHI]: u-level)
     hx = _NO_HASH
     nx = I0
     lx = 0.0
+    nhi = I0
     for s in range(nk - 1):
         s0 = knot[s]
         s1 = knot[s + 1]
@@ -115,33 +93,17 @@ def _scan(C, u, steps, nex, U=None):
             # probe), at the segment's start with those seen at the end of the previous
             # segment (a knot ends a face trace, not the narrow pieces that cross it)
             x = s0 + nudge
-            if U is None:
-                hx, nx, lx = vsig(C, u, x)
-            else:
-                nx, hx = probe_mids(C, x, HASH_STEPS, R_MLO, nx, R_MLO, I0, R_MLO)
+            hx, nx, lx = _probe(C, U, u, x, nx, R_MLO, I0, R_MLO)
             if nx < 0:
                 return -1, _NO_HASH
             if U is None:
                 seq = mix(seq, hx)
             else:
                 keep_seeds(U.seeds, U.nseed, m - 1, S, R_MLO, nx)
-            j = int((x - c0) / (c1 - c0) * V_PROBES) + 1
-            e = 0
-            while e < nex and ex[e] <= x:
-                e += 1
+            j, e = first_probes(c0, c1, x, ex, nex)
             while True:
-                y = c0 + (c1 - c0) * j / V_PROBES
-                use_extra = e < nex and ex[e] < y
-                if use_extra:
-                    y = ex[e]
-                last = y >= s1 - nudge
-                if last:
-                    y = s1 - nudge
-                if U is None:
-                    hy, ny, ly = vsig(C, u, y)
-                else:
-                    ny, hy = probe_mids(C, y, HASH_STEPS, R_MLO, nx, R_MLO, I0, R_MY)
-                    ly = 0.0
+                y, use_extra, last = next_probe(c0, c1, j, ex, e, nex, s1 - nudge)
+                hy, ny, ly = _probe(C, U, u, y, nx, R_MLO, I0, R_MY)
                 if ny < 0:
                     return -1, _NO_HASH
                 nre = 0
@@ -164,44 +126,22 @@ def _scan(C, u, steps, nex, U=None):
                         if nx < 0:
                             return -1, _NO_HASH
                         if nre < U.reprobes and hi_ - x > 4.0 * U_FLICKER * (c1 - c0):
-                            # hi_ was probed with the pieces tracked from a bracket end far
-                            # away, so a narrow piece followed up to it may have been missed
-                            # there: probe it again with the pieces seen just below it
-                            # (2^-U_BREAK_STEPS away)
                             nre += 1
-                            mr, hr = probe(C, hi_, track, R_MLO, nx, R_MLO, I0)
+                            mr, hr, hy, ny, h_hi, nhi, nx = _reprobe(C, track, hx, hi_, h_hi,
+                                                                     nhi, nx, y, hy, ny)
                             if mr < 0:
                                 return -1, _NO_HASH
-                            if hi_ == y:
-                                hy = hr
-                                ny = piece_mids(S, mr, R_MY)
                             if hr == hx:          # no change at hi_ after all: go on from there
                                 x = hi_
-                                nx = piece_mids(S, mr, R_MLO)
                                 continue
-                            if hr != h_hi:
-                                h_hi = hr
-                                nhi = piece_mids(S, mr, R_MHI)
                     gap = hi_ - brk[m - 1]
-                    # a u-level zone lasts while its breaks keep following the step-over (they
-                    # are its flicker, as far apart as the step), however wide it grows
-                    zoned = False
-                    if U is not None:
-                        zoned = nshort >= U_ZONE_BREAKS and (gap <= zone or gap <= 4.0 * jump)
-                    if gap <= flicker or zoned:
-                        # the structure flickers at a tangency (round-off decides whether a
-                        # grazing pair of roots is seen): step over the flicker; inside a zone
-                        # where breaks keep coming closer than U_ZONE apart (a line family
-                        # grazing the surface along u), in doubling steps
-                        x = hi_ + (jump if zoned else step)
-                        if zoned:
-                            jump = min(2.0 * jump, zone_max)
+                    over, xs, jump = step_over(U, hi_, gap, nshort, jump, step, flicker, zone,
+                                                zone_max)
+                    if over:
+                        x = xs
                         if x >= y:
                             break
-                        if U is None:
-                            hx, nx, lx = vsig(C, u, x)
-                        else:
-                            nx, hx = probe_mids(C, x, HASH_STEPS, R_MLO, nx, R_MHI, nhi, R_MLO)
+                        hx, nx, lx = _probe(C, U, u, x, nx, R_MHI, nhi, R_MLO)
                         if nx < 0:
                             return -1, _NO_HASH
                         continue
@@ -228,23 +168,13 @@ def _scan(C, u, steps, nex, U=None):
                     if hi_ >= y:
                         break
                     if U is not None:
-                        xs = hi_ + step
-                        if U.reprobes > 0 and xs < y:
-                            # right at the break the structure is degenerate (two creases
-                            # crossing leave a piece of zero width), and it may hash like the
-                            # structure at y by chance: the next bracket starts just past it
-                            x = xs
-                            nx, hx = probe_mids(C, x, track, R_MLO, nx, R_MLO, I0, R_MLO)
-                            if nx < 0:
-                                return -1, _NO_HASH
+                        x, hx, nx = _past_break(C, U.reprobes, hi_ + step, y, track, x, hx, nx)
+                        if nx < 0:
+                            return -1, _NO_HASH
                 x = y
                 hx = hy
-                if U is None:
-                    nx = ny
-                    lx = ly
-                else:
-                    nx = merge(S, R_MY, ny, R_MY, I0, R_MLO)
-                    keep_seeds(U.seeds, U.nseed, m - 1, S, R_MLO, nx)
+                lx = ly                           # 0.0 on the u-level, as from the start
+                nx = _carry(C, U, m, ny)
                 if last:
                     break
                 if use_extra:
@@ -262,6 +192,84 @@ def _scan(C, u, steps, nex, U=None):
     brk[m] = c1
     flag[m] = 0.0
     return m + 1, seq
+
+
+def _probe(C, U, u, x, na, rb, nb, dst):
+    """The structure at x of the level :func:`_scan` walks. v-level (``U`` None): the line
+    signature at (u, x) (:func:`.pieces.vsig`). u-level: the v-structure at x, probed also at
+    the piece midpoints S[R_MLO, :na] and S[rb, :nb], its own midpoints kept in S[dst]
+    (:func:`probe_mids`). Returns (hash, count, inside length: v-level only, else 0.0);
+    count -1 on overflow. Jitted code only (see :func:`_probe_level`)."""
+    raise NotImplementedError("_probe is called from jitted code only")
+
+
+@overload(_probe)
+def _probe_level(C, U, u, x, na, rb, nb, dst):
+    # one function per level, chosen by U's type as the caller is typed: the u-level's probes
+    # the v-level, whose scan calls _probe too, and a single njit function would then be
+    # compiling while it is called again, which Numba takes for recursion (an unresolved
+    # symbol at run time)
+    if isinstance(U, (nbtypes.NoneType, nbtypes.Omitted)):
+        def v_level(C, U, u, x, na, rb, nb, dst):
+            h, n, length = vsig(C, u, x)
+            return h, n, length
+        return v_level
+
+    def u_level(C, U, u, x, na, rb, nb, dst):
+        n, h = probe_mids(C, x, HASH_STEPS, R_MLO, na, rb, nb, dst)
+        return h, n, 0.0
+    return u_level
+
+
+@njit(cache=True)
+def _past_break(C, reprobes, xs, y, track, x, hx, nx):
+    """Where the u-level's next bracket starts after a break (at x, with hash hx and nx
+    midpoints in S[R_MLO]): with re-probes, at xs just past it if that is below y, with the
+    v-structure probed there, since right at the break the structure is degenerate (two
+    creases crossing leave a piece of zero width) and may hash like the structure at y by
+    chance. Returns (x, hx, nx); nx -1 on overflow."""
+    if reprobes > 0 and xs < y:
+        nx, hx = probe_mids(C, xs, track, R_MLO, nx, R_MLO, I0, R_MLO)
+        return xs, hx, nx
+    return x, hx, nx
+
+
+@njit(cache=True)
+def _carry(C, U, m, n):
+    """The count at x once the scan moves x to its next probe (count n there): v-level the
+    roots', u-level the v-piece midpoints', moved from S[R_MY] to S[R_MLO] and kept as seeds
+    of the u-piece m - 1."""
+    if U is None:
+        nx = n
+    else:
+        S = C.S
+        nx = merge(S, R_MY, n, R_MY, I0, R_MLO)
+        keep_seeds(U.seeds, U.nseed, m - 1, S, R_MLO, nx)
+    return nx
+
+
+@njit(cache=True)
+def _reprobe(C, track, hx, hi_, h_hi, nhi, nx, y, hy, ny):
+    """The u-level's change hi_, located by :func:`_locate_u`, probed again with the v-pieces
+    seen just below it (S[R_MLO, :nx], 2^-U_BREAK_STEPS away): hi_ was probed with the pieces
+    tracked from a bracket end far away, so a narrow piece followed up to it may have been
+    missed there. Returns (the probe's break count, -1 on overflow; its hash; hy, ny and
+    S[R_MY] updated when hi_ is y; h_hi, nhi and S[R_MHI] updated when the hash at hi_ is
+    another; nx, with S[R_MLO] the midpoints at hi_ when the hash there is hx (no change at
+    hi_ after all), else as given)."""
+    S = C.S
+    mr, hr = probe(C, hi_, track, R_MLO, nx, R_MLO, I0)
+    if mr < 0:
+        return mr, hr, hy, ny, h_hi, nhi, nx
+    if hi_ == y:
+        hy = hr
+        ny = piece_mids(S, mr, R_MY)
+    if hr == hx:
+        return mr, hr, hy, ny, h_hi, nhi, piece_mids(S, mr, R_MLO)
+    if hr != h_hi:
+        h_hi = hr
+        nhi = piece_mids(S, mr, R_MHI)
+    return mr, hr, hy, ny, h_hi, nhi, nx
 
 
 @njit(cache=True)

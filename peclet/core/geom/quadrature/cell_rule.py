@@ -19,7 +19,7 @@ from .breaks import probe, ubreaks, vbreaks
 from .constants import (BREAK_STEPS, HASH_STEPS, I0, PROJECT_EPS, PROJECT_STEPS, R_LEAF, R_MC,
                         R_MLO, R_ROOT, R_UBRK, R_UFLAG, R_VBRK, R_VFLAG, R_EXTRA, SURFACE_FRAC,
                         U_REPROBES)
-from .line_search import line_roots, run_moments
+from .line_search import Line, line_roots, run_moments
 from .pieces import merge, piece_mids, piece_node, sorted_seeds
 
 #: A cut cell's fixed data, passed to the break search and the rule as one value: the program
@@ -111,19 +111,20 @@ def _v_rule(C, gx, gw, u, wu, m, acc):
             continue
         for jv in range(gx.shape[0]):
             v, wv = piece_node(p0, p1, gx[jv], flag[pc] != 0.0, flag[pc + 1] != 0.0)
-            nr, ins = line_roots(C.P, C.ak, C.iu, C.iv, u, v, C.a, C.b, C.lip, C.st,
+            nr, ins = line_roots(Line(C.P, C.ak, C.iu, C.iv, u, v, C.st), C.a, C.b, C.lip,
                                  S[R_ROOT], S[R_LEAF], I0)
             if nr < 0:
                 return False
-            _accumulate(acc, wu * wv * gw[jv], C.iu, C.iv, C.ak, u, v, C.a, C.b, nr, ins,
-                        S[R_ROOT], C.cen)
+            _accumulate(acc, wu * wv * gw[jv], C, u, v, nr, ins)
     return True
 
 
 @njit(cache=True)
-def _accumulate(acc, w, iu, iv, ak, u, v, a, b, nr, inside0, roots, cen):
-    """Add w * (moments of the inside runs of the line) to acc (10 raw moments)."""
-    m0, m1, m2 = run_moments(nr, inside0, roots, a, b, cen[ak])
+def _accumulate(acc, w, C, u, v, nr, inside0):
+    """Add w * (moments of the inside runs of the height line at (u, v) of the cut cell
+    ``C``, its nr roots in S[R_ROOT]) to acc (10 raw moments)."""
+    iu, iv, ak, a, b, cen = C.iu, C.iv, C.ak, C.a, C.b, C.cen
+    m0, m1, m2 = run_moments(nr, inside0, C.S[R_ROOT], a, b, cen[ak])
     if m0 == 0.0:
         return
     uu = u - cen[iu]

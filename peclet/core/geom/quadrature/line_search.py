@@ -8,6 +8,7 @@ and the line's *signature* (root count, starting side, active leaf feature per r
 break search where the integrand stops being smooth.
 """
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -16,10 +17,26 @@ from .. import kernels as K
 from .constants import DIP_BUDGET, DIP_STEPS, I0, LINE_EPS, LINE_STACK
 
 
+class Line(NamedTuple):
+    """One axis-parallel line of the search: the program tuple ``P`` (ops, leaf_kind,
+    leaf_reals, op_begin, op_end) of :mod:`peclet.core.geom.kernels`, the line's axis ``ak``
+    (0, 1 or 2), its coordinates ``u`` on axis ``iu`` and ``v`` on axis ``iv`` (world frame,
+    the program's length unit) and the evaluator's scratch stack ``st`` (MAX_STACK,
+    STACK_COLS). Built per line, in the kernel that walks the lines."""
+    P: tuple
+    ak: int
+    iu: int
+    iv: int
+    u: float
+    v: float
+    st: np.ndarray
+
+
 @njit(cache=True)
-def _phi_d(P, ak, u, v, t, iu, iv, st):
-    """(phi, d phi / d t) at the point with coordinate t on axis ak, u on axis iu and v on
-    axis iv. ``P`` is the program tuple (ops, leaf_kind, leaf_reals, op_begin, op_end)."""
+def _phi_d(line, t):
+    """(phi, d phi / d t) at the point of ``line`` (a :class:`Line`) with coordinate t on its
+    axis ak."""
+    P, ak, iu, iv, u, v, st = line
     p0 = 0.0
     p1 = 0.0
     p2 = 0.0
@@ -50,26 +67,27 @@ def _phi_d(P, ak, u, v, t, iu, iv, st):
 
 
 @njit(cache=True, inline="always")
-def _phi(P, ak, u, v, t, iu, iv, st):
-    """phi at the point with coordinate t on axis ak (see :func:`_phi_d`)."""
-    return _phi_d(P, ak, u, v, t, iu, iv, st)[0]
+def _phi(line, t):
+    """phi at the point of ``line`` with coordinate t on its axis (see :func:`_phi_d`)."""
+    return _phi_d(line, t)[0]
 
 
 @njit(cache=True)
-def _refine(P, ak, iu, iv, u, v, a, fa, b, fb, st):
-    """A root of phi in [a, b] (fa, fb of opposite signs) to round-off.
+def _refine(line, a, fa, b, fb):
+    """A root of phi in [a, b] of ``line`` (fa, fb of opposite signs) to round-off.
 
     Safeguarded Newton along the line (the evaluator returns the gradient with phi): a Newton
     step is taken when it stays inside the bracket and the previous one at least halved |phi|,
     a bisection otherwise, so the bracket always shrinks and a crease inside it (where the
     derivative jumps) costs at most a bisection's worth of steps. Starts at the secant point.
     Returns (root, active leaf feature at the root)."""
+    st = line.st
     x = (a * fb - b * fa) / (fb - fa)
     if not (a < x < b):
         x = 0.5 * (a + b)
     fprev = math.inf
     for _ in range(200):
-        f, d = _phi_d(P, ak, u, v, x, iu, iv, st)
+        f, d = _phi_d(line, x)
         if f == 0.0:
             return x, st[0, 4]
         if (f < 0.0) == (fa < 0.0):
@@ -91,19 +109,19 @@ def _refine(P, ak, iu, iv, u, v, a, fa, b, fb, st):
             x = 0.5 * (a + b)
         fprev = abs(f)
     r = 0.5 * (a + b)
-    _phi(P, ak, u, v, r, iu, iv, st)
+    _phi(line, r)
     return r, st[0, 4]
 
 
 @njit(cache=True)
-def _add_root(P, ak, iu, iv, u, v, x, fx, y, fy, st, roots, leaves, r0, nr, eps):
-    """Refine the root in [x, y] (fx, fy of opposite signs) and append it to roots/leaves
-    after slot r0 + nr; a root within ``eps`` of the previous one annihilates with it (a
-    grazing pair, or round-off noise at a tangency: the run between them carries no
-    measurable length). Returns the new count, -1 on overflow."""
+def _add_root(line, x, fx, y, fy, roots, leaves, r0, nr, eps):
+    """Refine the root in [x, y] of ``line`` (fx, fy of opposite signs) and append it to
+    roots/leaves after slot r0 + nr; a root within ``eps`` of the previous one annihilates
+    with it (a grazing pair, or round-off noise at a tangency: the run between them carries
+    no measurable length). Returns the new count, -1 on overflow."""
     if r0 + nr >= roots.shape[0]:
         return -1
-    r, lf = _refine(P, ak, iu, iv, u, v, x, fx, y, fy, st)
+    r, lf = _refine(line, x, fx, y, fy)
     if nr > 0 and r - roots[r0 + nr - 1] <= eps:
         return nr - 1
     roots[r0 + nr] = r
@@ -112,8 +130,8 @@ def _add_root(P, ak, iu, iv, u, v, x, fx, y, fy, st, roots, leaves, r0, nr, eps)
 
 
 @njit(cache=True)
-def _dip(P, ak, iu, iv, u, v, x, fx, dx, y, fy, dy, st, eps):
-    """Search [x, y], whose ends have the same sign and slopes pointing at an extremum
+def _dip(line, x, fx, dx, y, fy, dy, eps):
+    """Search [x, y] of ``line``, whose ends have the same sign and slopes pointing at an extremum
     inside (phi falling then rising outside the solid, the reverse inside), for a point of
     the other sign: regula falsi on d phi / dt (a tangency's phi is locally a parabola, so
     one or two steps land on its extremum). Returns (t, phi(t), evaluations); phi(t) has
@@ -133,7 +151,7 @@ def _dip(P, ak, iu, iv, u, v, x, fx, dx, y, fy, dy, st, eps):
             t = 0.5 * (p + q)       # a bisection every fourth step: the bracket shrinks
         if abs(t - tprev) <= eps:
             break                   # converged on the extremum
-        f, d = _phi_d(P, ak, u, v, t, iu, iv, st)
+        f, d = _phi_d(line, t)
         n += 1
         if (f < 0.0) != (fx < 0.0):
             break
@@ -150,8 +168,9 @@ def _dip(P, ak, iu, iv, u, v, x, fx, dx, y, fy, dy, st, eps):
 
 
 @njit(cache=True)
-def line_roots(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
-    """Roots of phi along axis ak over [a, b] at (u, v), written to roots/leaves from slot r0.
+def line_roots(line, a, b, lip, roots, leaves, r0):
+    """Roots of phi along ``line`` (a :class:`Line`) over [a, b] of its axis, written to
+    roots/leaves from slot r0.
 
     Returns (count, starts_inside); count = -1 on overflow. Steps are ``max(|phi|, (b-a)/64)``.
     On a 1-Lipschitz tree a step [x, y] with no sign change is *proved* root-free when
@@ -168,7 +187,7 @@ def line_roots(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
     hmin = (b - a) / 64.0
     eps = LINE_EPS * (b - a)
     t = a
-    f, df = _phi_d(P, ak, u, v, t, iu, iv, st)
+    f, df = _phi_d(line, t)
     inside0 = f < 0.0
     nr = I0                  # an int64, not a literal: _add_root is compiled once
     extra = 0
@@ -181,7 +200,7 @@ def line_roots(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
         t2 = t + step
         if t2 > b:
             t2 = b
-        f2, d2 = _phi_d(P, ak, u, v, t2, iu, iv, st)
+        f2, d2 = _phi_d(line, t2)
         # sub-intervals of [t, t2] still to examine, processed left to right:
         # (x, phi(x), y, phi(y), phi'(x), phi'(y))
         ns = 1
@@ -200,8 +219,7 @@ def line_roots(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
             dx = stk[ns, 4]
             dy = stk[ns, 5]
             if (fx < 0.0) != (fy < 0.0):
-                nr = _add_root(P, ak, iu, iv, u, v, x, fx, y, fy, st, roots, leaves, r0, nr,
-                               eps)
+                nr = _add_root(line, x, fx, y, fy, roots, leaves, r0, nr, eps)
                 if nr < 0:
                     return -1, inside0
                 continue
@@ -211,7 +229,7 @@ def line_roots(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
             if lip > 0 and ns + 2 <= LINE_STACK and extra < lip:
                 extra += 1
                 m = 0.5 * (x + y)
-                fm, dm = _phi_d(P, ak, u, v, m, iu, iv, st)
+                fm, dm = _phi_d(line, m)
                 stk[ns, 0] = m                 # right half first: the left is popped next
                 stk[ns, 1] = fm
                 stk[ns, 2] = y
@@ -228,14 +246,12 @@ def line_roots(P, ak, iu, iv, u, v, a, b, lip, st, roots, leaves, r0):
                 continue
             sgn = 1.0 if fx >= 0.0 else -1.0
             if dips < DIP_BUDGET and sgn * dx < 0.0 and sgn * dy > 0.0:
-                tm, fm, used = _dip(P, ak, iu, iv, u, v, x, fx, dx, y, fy, dy, st, eps)
+                tm, fm, used = _dip(line, x, fx, dx, y, fy, dy, eps)
                 dips += used
                 if (fm < 0.0) != (fx < 0.0):
-                    nr = _add_root(P, ak, iu, iv, u, v, x, fx, tm, fm, st, roots, leaves, r0,
-                                   nr, eps)
+                    nr = _add_root(line, x, fx, tm, fm, roots, leaves, r0, nr, eps)
                     if nr >= 0:
-                        nr = _add_root(P, ak, iu, iv, u, v, tm, fm, y, fy, st, roots, leaves,
-                                       r0, nr, eps)
+                        nr = _add_root(line, tm, fm, y, fy, roots, leaves, r0, nr, eps)
                     if nr < 0:
                         return -1, inside0
         t = t2

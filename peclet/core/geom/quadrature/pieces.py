@@ -10,22 +10,25 @@ import numpy as np
 from numba import njit
 
 from .constants import I0, R_KLEAF, R_KROOT, R_LEAF, R_ROOT, R_VBRK, R_XP
-from .line_search import line_roots, run_moments, signature, sort_prefix
+from .line_search import Line, line_roots, run_moments, signature, sort_prefix
 
 
 @njit(cache=True)
-def knots(P, ax, f1, f2, lo, hi, c1lo, c1hi, n1, c2lo, c2hi, lip, st, S, row):
-    """Sorted roots in (lo, hi) of phi along axis ``ax`` on the lines whose other two
-    coordinates (on axes f1, f2) are (c1, c2) for c1 in (c1lo, c1hi)[:n1] and c2 in (c2lo,
-    c2hi) -- two lines on a cell face (n1 = 1) or a cell's four edges (n1 = 2): where the
-    solid's trace on a cell face or edge changes sign. Written to S[row, 1:m+1] between
-    S[row, 0] = lo and S[row, m+1] = hi; returns m + 2, or -1 on overflow. Found by the
-    certified line search, so none is missed on a 1-Lipschitz tree."""
+def knots(C, ax, f1, lo, hi, c1lo, c1hi, n1, row):
+    """Sorted roots in (lo, hi) of phi along axis ``ax`` on the lines of the cut cell ``C``
+    (a :data:`.cell_rule.Cell`) whose other two coordinates, on axes f1 and the height axis
+    C.ak, are (c1, c2) for c1 in (c1lo, c1hi)[:n1] and c2 in (C.a, C.b) -- two lines on a
+    cell face (n1 = 1) or a cell's four edges (n1 = 2): where the solid's trace on a cell face
+    or edge changes sign. Written to S[row, 1:m+1] between S[row, 0] = lo and S[row, m+1] =
+    hi; returns m + 2, or -1 on overflow. Found by the certified line search, so none is
+    missed on a 1-Lipschitz tree."""
+    S = C.S
     n = I0
     for i in range(2 * n1):
         c1 = c1lo if i < 2 else c1hi
-        c2 = c2lo if i % 2 == 0 else c2hi
-        nr, _ = line_roots(P, ax, f1, f2, c1, c2, lo, hi, lip, st, S[R_KROOT], S[R_KLEAF], n)
+        c2 = C.a if i % 2 == 0 else C.b
+        nr, _ = line_roots(Line(C.P, ax, f1, C.ak, c1, c2, C.st), lo, hi, C.lip, S[R_KROOT],
+                           S[R_KLEAF], n)
         if nr < 0:
             return -1
         n += nr
@@ -50,8 +53,8 @@ def vsig(C, u, v):
     ``C``; count -1 on overflow. The roots are left in S[R_ROOT], S[R_LEAF]."""
     S = C.S
     roots = S[R_ROOT]
-    nr, ins = line_roots(C.P, C.ak, C.iu, C.iv, u, v, C.a, C.b, C.lip, C.st, roots, S[R_LEAF],
-                         I0)
+    nr, ins = line_roots(Line(C.P, C.ak, C.iu, C.iv, u, v, C.st), C.a, C.b, C.lip, roots,
+                         S[R_LEAF], I0)
     if nr < 0:
         return np.uint64(0), -1, 0.0
     length, _, _ = run_moments(nr, ins, roots, C.a, C.b, 0.0)

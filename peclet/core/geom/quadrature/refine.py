@@ -36,18 +36,16 @@ def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
     mom = np.zeros((n, 10))
     err = np.zeros((n, 10))
     code = np.zeros(n, dtype=np.int64)
-    run_shares(_integrate_share, n, ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen,
-               mom, err, code, dynamic=True)
+    run_shares(_integrate_share, n, (ops, lk, lr, ob, oe), (g5x, g5w, g7x, g7w), cells, lip,
+               cen, mom, err, code, dynamic=True)
     return mom, err, code
 
 
 @njit(cache=True, nogil=True)
-def _integrate_share(first, step, ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen,
-                     mom, err, code):
+def _integrate_share(first, step, P, G, cells, lip, cen, mom, err, code):
     """The cells ``first``, ``first + step``, ... of :func:`integrate_cells`, into their rows
-    of ``mom``, ``err`` and ``code``."""
-    P = (ops, lk, lr, ob, oe)
-    G = (g5x, g5w, g7x, g7w)
+    of ``mom``, ``err`` and ``code``: ``P`` the program tuple (ops, lk, lr, ob, oe), ``G`` the
+    rules' nodes and weights on [0, 1] (g5x, g5w, g7x, g7w), the rest as there."""
     st = np.empty((K.MAX_STACK, K.STACK_COLS))
     S = np.empty((SCRATCH_ROWS, MAX_BREAKS))
     seeds = np.empty((MAX_BREAKS, SEEDS))
