@@ -20,18 +20,8 @@ KERNEL_PARAMS = 12
 LARGE_MODULES = {
 }
 LONG_FUNCTIONS = {
-    "peclet/core/geom/kernels.py:leaf_eval": 180,
-    "peclet/core/geom/quadrature/breaks.py:_scan": 221,
 }
 WIDE_KERNELS = {
-    "peclet/core/geom/pruning.py:_prune_block": 16,
-    "peclet/core/geom/quadrature/cell_rule.py:_accumulate": 13,
-    "peclet/core/geom/quadrature/line_search.py:_add_root": 16,
-    "peclet/core/geom/quadrature/line_search.py:_dip": 14,
-    "peclet/core/geom/quadrature/line_search.py:line_roots": 13,
-    "peclet/core/geom/quadrature/pieces.py:knots": 15,
-    "peclet/core/geom/quadrature/refine.py:_integrate_share": 17,
-    "peclet/core/geom/scene.py:_scene_pruned": 15,
     "peclet/dem/broadphase.py:_count_rows": 14,
     "peclet/dem/broadphase.py:_fill_rows": 16,
     "peclet/dem/broadphase.py:_scan_body": 20,
