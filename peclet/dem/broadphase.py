@@ -14,6 +14,7 @@ more than a few hundred rows); both give the same arrays.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -99,16 +100,48 @@ _COUNT = np.bool_(False)
 _STORE = np.bool_(True)
 
 
+class CellList(NamedTuple):
+    """The bodies binned in the cell grid, as a row scan reads them: centres ``pos`` (N, 3),
+    bounding ``radius`` (N,), the pairs' ``margin`` (length), ``box`` (3,) the periodic
+    lengths, ``periodic`` (3,) bool, ``dims`` (3,) cells per axis, ``cell_start`` (ncell + 1,)
+    and ``items`` (N,) the bodies by cell and ``coords`` (N, 3) each body's cell
+    (:func:`build_cells`), and ``cpos`` (N, 3), ``crad`` (N,) the positions and radii in cell
+    order (:func:`_cell_sorted`). Built once per call of :func:`find_pairs`
+    (:func:`find_pairs_parallel`)."""
+    pos: np.ndarray
+    radius: np.ndarray
+    margin: float
+    box: np.ndarray
+    periodic: np.ndarray
+    dims: np.ndarray
+    cell_start: np.ndarray
+    items: np.ndarray
+    coords: np.ndarray
+    cpos: np.ndarray
+    crad: np.ndarray
+
+
 @njit(cache=True)
-def _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               out_j, out_shift, write, base, ax, ay, az, d, cpos, crad):
-    """Visit body i's partners j > i; count them, and if ``write`` store them from ``base``
-    (those that fit below ``len(out_j)``: the count says whether all did).
-    ``ax``, ``ay``, ``az`` (3,) int64 and ``d`` (3,) float64 are scratch (allocated once per
-    call of :func:`find_pairs`: an allocation per body cost a third of the phase). ``cpos``,
-    ``crad``: the positions and radii in cell order (:func:`_cell_sorted`), so that a cell's
-    candidates are read from consecutive rows; a cell's items ascend, so it is read from its
-    last down to the first j <= i."""
+def _row_scratch():
+    """A row scan's scratch: the neighbour cells along x, y, z ((3,) int64 each) and the
+    displacement (3,). Allocated once per call of a row loop: an allocation per body cost a
+    third of the phase."""
+    return (np.empty(3, np.int64), np.empty(3, np.int64), np.empty(3, np.int64),
+            np.empty(3))
+
+
+@njit(cache=True)
+def _scan_body(i, cells, out_j, out_shift, write, base, scratch):
+    """Visit body i's partners j > i in the :class:`CellList` ``cells``; count them, and if
+    ``write`` store them from ``base`` (those that fit below ``len(out_j)``: the count says
+    whether all did). ``scratch``: :func:`_row_scratch`. The candidates are read in cell order
+    (``cells.cpos``, ``cells.crad``), so that a cell's are consecutive rows; a cell's items
+    ascend, so it is read from its last down to the first j <= i."""
+    pos, radius, margin, box, periodic, dims = (cells.pos, cells.radius, cells.margin,
+                                                cells.box, cells.periodic, cells.dims)
+    cell_start, items, coords = cells.cell_start, cells.items, cells.coords
+    cpos, crad = cells.cpos, cells.crad
+    ax, ay, az, d = scratch
     limit = out_j.shape[0]
     nx = _axis_cells(coords[i, 0], dims[0], periodic[0], ax)
     ny = _axis_cells(coords[i, 1], dims[1], periodic[1], ay)
@@ -152,34 +185,23 @@ def _cell_sorted(pos, radius, items):
 
 
 @njit(cache=True)
-def _count_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                counts, cpos, crad):
+def _count_rows(k, nw, cells, counts):
     """counts[i] for the rows i = k, k + nw, ... (each row only written by its owner)."""
-    ax = np.empty(3, np.int64)
-    ay = np.empty(3, np.int64)
-    az = np.empty(3, np.int64)
-    d = np.empty(3)
+    scratch = _row_scratch()
     dummy_j = np.empty(0, np.int64)
     dummy_s = np.empty((0, 3))
     zero = np.int64(0)
-    for i in range(k, pos.shape[0], nw):
-        counts[i] = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
-                               coords, dummy_j, dummy_s, _COUNT, zero, ax, ay, az, d, cpos,
-                               crad)
+    for i in range(k, cells.pos.shape[0], nw):
+        counts[i] = _scan_body(i, cells, dummy_j, dummy_s, _COUNT, zero, scratch)
 
 
 @njit(cache=True)
-def _fill_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               offs, pb, shift, cpos, crad):
+def _fill_rows(k, nw, cells, offs, pb, shift):
     """Rows i = k, k + nw, ...: partners and shifts from offs[i], sorted by partner index (a
     fixed order, independent of the cell layout)."""
-    ax = np.empty(3, np.int64)
-    ay = np.empty(3, np.int64)
-    az = np.empty(3, np.int64)
-    d = np.empty(3)
-    for i in range(k, pos.shape[0], nw):
-        _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                   pb, shift, _STORE, offs[i], ax, ay, az, d, cpos, crad)
+    scratch = _row_scratch()
+    for i in range(k, cells.pos.shape[0], nw):
+        _scan_body(i, cells, pb, shift, _STORE, offs[i], scratch)
         _sort_row(pb, shift, offs[i], offs[i + 1])
 
 
@@ -225,32 +247,27 @@ def find_pairs(pos, radius, margin, lo, cell, dims, box, periodic):
     ``pos[b] + shift`` is the image of b nearest to a."""
     cell_start, items, coords = build_cells(pos, lo, cell, dims)
     cpos, crad = _cell_sorted(pos, radius, items)
+    cells = CellList(pos, radius, margin, box, periodic, dims, cell_start, items, coords, cpos,
+                     crad)
     counts = np.zeros(pos.shape[0], np.int64)
     one = np.int64(1)
     zero = np.int64(0)
-    _count_rows(zero, one, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-                counts, cpos, crad)
+    _count_rows(zero, one, cells, counts)
     offs, pb, shift, pa = _rows(counts)
-    _fill_rows(zero, one, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               offs, pb, shift, cpos, crad)
+    _fill_rows(zero, one, cells, offs, pb, shift)
     return pa, pb, shift
 
 
 @njit(cache=True)
-def _scan_rows(k, nw, pos, radius, margin, box, periodic, dims, cell_start, items, coords,
-               counts, rowpos, buf_j, buf_s, cpos, crad):
+def _scan_rows(k, nw, cells, counts, rowpos, buf_j, buf_s):
     """Rows i = k, k + nw, ... in one pass: each row's partners, sorted by index, with their
     shifts into this worker's buffers ``buf_j``/``buf_s`` from ``rowpos[i]``, ``counts[i]``
     their number. Returns the slots used, or -1 when the buffers are too small."""
-    ax = np.empty(3, np.int64)
-    ay = np.empty(3, np.int64)
-    az = np.empty(3, np.int64)
-    d = np.empty(3)
+    scratch = _row_scratch()
     cap = buf_j.shape[0]
     used = np.int64(0)
-    for i in range(k, pos.shape[0], nw):
-        cnt = _scan_body(i, pos, radius, margin, box, periodic, dims, cell_start, items,
-                         coords, buf_j, buf_s, _STORE, used, ax, ay, az, d, cpos, crad)
+    for i in range(k, cells.pos.shape[0], nw):
+        cnt = _scan_body(i, cells, buf_j, buf_s, _STORE, used, scratch)
         if used + cnt > cap:
             return np.int64(-1)
         _sort_row(buf_j, buf_s, used, used + cnt)
@@ -279,6 +296,10 @@ def find_pairs_parallel(pos, radius, margin, lo, cell, dims, box, periodic, slot
     arrays) when a worker's buffer was too small."""
     cell_start, items, coords = build_cells(pos, lo, cell, dims)
     cpos, crad = _cell_sorted(pos, radius, items)
+    # built here, not returned by a helper: the parallel loop below rebuilds the bundle by the
+    # name of the class it was constructed with
+    cells = CellList(pos, radius, margin, box, periodic, dims, cell_start, items, coords, cpos,
+                     crad)
     n = pos.shape[0]
     counts = np.zeros(n, np.int64)
     rowpos = np.zeros(n, np.int64)
@@ -287,9 +308,7 @@ def find_pairs_parallel(pos, radius, margin, lo, cell, dims, box, periodic, slot
     used = np.empty(ROW_WORKERS, np.int64)
     nw = np.int64(ROW_WORKERS)
     for k in prange(ROW_WORKERS):
-        used[k] = _scan_rows(np.int64(k), nw, pos, radius, margin, box, periodic, dims,
-                             cell_start, items, coords, counts, rowpos, buf_j[k], buf_s[k],
-                             cpos, crad)
+        used[k] = _scan_rows(np.int64(k), nw, cells, counts, rowpos, buf_j[k], buf_s[k])
     for k in range(ROW_WORKERS):
         if used[k] < 0:
             return (np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3)), False)

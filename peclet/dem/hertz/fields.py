@@ -14,34 +14,26 @@ import numpy as np
 from numba import njit
 
 from peclet.core.geom.kernels import MAX_STACK, STACK_COLS, eval_point
+from peclet.dem.treeframe import to_home, to_world
 
 from .calibration import elliptic_table
-from .law import cross
+from .law import Walls, cross, walls_of
 
 
-class Shapes(NamedTuple):
-    """The bodies' positions ``pos`` (N, 3) and rotations ``rot`` (N, 3, 3), ``shape_of`` (N,),
-    per shape its kind, radius, program rows (k, 2), first probe and probe count, the probes
-    (home frame), per wall its program rows, sign and pose, the program tables ``ops``,
-    ``lk``, ``lr``, and the elliptical Hertz table (``ctab_t``, ``ctab_c``)."""
-    pos: np.ndarray
-    rot: np.ndarray
-    shape_of: np.ndarray
-    shape_kind: np.ndarray
-    shape_rad: np.ndarray
-    shape_op: np.ndarray
-    shape_p0: np.ndarray
-    shape_np: np.ndarray
-    probes: np.ndarray
-    wall_op: np.ndarray
-    wall_sign: np.ndarray
-    wall_pos: np.ndarray
-    wall_rot: np.ndarray
-    ops: np.ndarray
-    lk: np.ndarray
-    lr: np.ndarray
-    ctab_t: np.ndarray
-    ctab_c: np.ndarray
+#: The fields of :class:`Shapes`: the bodies and their shapes, then the walls part, which is
+#: :class:`~peclet.dem.hertz.law.Walls`'s fields (one definition serves both bundles), then the
+#: elliptical Hertz table.
+_SHAPES_FIELDS = ("pos", "rot", "shape_of", "shape_kind", "shape_rad", "shape_op", "shape_p0",
+                  "shape_np", "probes", *Walls._fields, "ctab_t", "ctab_c")
+# flat, not a Walls nested in a Shapes: a parallel loop over a bundle (patches_parallel)
+# unpacks one level of tuples only
+Shapes = NamedTuple("Shapes", [(f, np.ndarray) for f in _SHAPES_FIELDS])
+Shapes.__doc__ = """The bodies' positions ``pos`` (N, 3) and rotations ``rot`` (N, 3, 3),
+    ``shape_of`` (N,), per shape its kind, radius, program rows (k, 2), first probe and probe
+    count, the probes (home frame), then the fields of a :class:`~peclet.dem.hertz.law.Walls`
+    (per wall its program rows, sign and pose, and the program tables ``ops``, ``lk``, ``lr``,
+    which the shapes' rows index too), and the elliptical Hertz table (``ctab_t``,
+    ``ctab_c``)."""
 
 
 def probe_counts(geo):
@@ -53,8 +45,7 @@ def shapes_of(pos, rot, shape_of, geo):
     """The :class:`Shapes` of bodies at ``pos`` with rotations ``rot`` in geometry ``geo``."""
     ct, cc = elliptic_table()
     return Shapes(pos, rot, shape_of, geo.shape_kind, geo.shape_rad, geo.shape_op, geo.shape_p0,
-                  probe_counts(geo), geo.probes, geo.wall_op, geo.wall_sign, geo.wall_pos,
-                  geo.wall_rot, geo.ops, geo.lk, geo.lr, ct, cc)
+                  probe_counts(geo), geo.probes, *walls_of(geo), ct, cc)
 
 
 class Side(NamedTuple):
@@ -95,13 +86,10 @@ def field(side, sh, px, py, pz, st):
         if d > 0.0:
             return d - rad, dx / d, dy / d, dz / d
         return -rad, 1.0, 0.0, 0.0
-    qx = Rt[0, 0] * dx + Rt[1, 0] * dy + Rt[2, 0] * dz
-    qy = Rt[0, 1] * dx + Rt[1, 1] * dy + Rt[2, 1] * dz
-    qz = Rt[0, 2] * dx + Rt[1, 2] * dy + Rt[2, 2] * dz
+    qx, qy, qz = to_home(Rt, dx, dy, dz)
     phi, gx, gy, gz = eval_point(ops, lk, lr, o0, o1, qx, qy, qz, st)
-    return (sgn * phi, sgn * (Rt[0, 0] * gx + Rt[0, 1] * gy + Rt[0, 2] * gz),
-            sgn * (Rt[1, 0] * gx + Rt[1, 1] * gy + Rt[1, 2] * gz),
-            sgn * (Rt[2, 0] * gx + Rt[2, 1] * gy + Rt[2, 2] * gz))
+    wx, wy, wz = to_world(Rt, sgn, gx, gy, gz)
+    return sgn * phi, wx, wy, wz
 
 
 @njit(cache=True)

@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit, prange
 
 from peclet.core.geom.kernels import MAX_STACK, STACK_COLS, eval_point
+from peclet.dem.treeframe import to_home, world_normal
 from . import dispatch
 
 
@@ -56,7 +57,8 @@ class ForceOut(NamedTuple):
 
 class Walls(NamedTuple):
     """What a sphere's wall contact reads: the walls' program rows ``wall_op`` (W, 2), signs,
-    poses (``wall_pos`` (W, 3), ``wall_rot`` (W, 3, 3)) and the program tables."""
+    poses (``wall_pos`` (W, 3), ``wall_rot`` (W, 3, 3)) and the program tables. Its fields
+    are also the walls part of :class:`peclet.dem.hertz.fields.Shapes`."""
     wall_op: np.ndarray
     wall_sign: np.ndarray
     wall_pos: np.ndarray
@@ -316,26 +318,17 @@ def contact_geometry(a, b, shift, pos, radii, walls, point, normal, gap):
         else:
             w = -1 - ib
             Rt = wall_rot[w]
-            dx = px - wall_pos[w, 0]
-            dy = py - wall_pos[w, 1]
-            dz = pz - wall_pos[w, 2]
-            qx = Rt[0, 0] * dx + Rt[1, 0] * dy + Rt[2, 0] * dz
-            qy = Rt[0, 1] * dx + Rt[1, 1] * dy + Rt[2, 1] * dz
-            qz = Rt[0, 2] * dx + Rt[1, 2] * dy + Rt[2, 2] * dz
+            qx, qy, qz = to_home(Rt, px - wall_pos[w, 0], py - wall_pos[w, 1],
+                                 pz - wall_pos[w, 2])
             phi, gx, gy, gz = eval_point(ops, lk, lr, wall_op[w, 0], wall_op[w, 1], qx, qy, qz,
                                          st)
             sgn = wall_sign[w]
             g = sgn * phi - r
-            nx = sgn * (Rt[0, 0] * gx + Rt[0, 1] * gy + Rt[0, 2] * gz)
-            ny = sgn * (Rt[1, 0] * gx + Rt[1, 1] * gy + Rt[1, 2] * gz)
-            nz = sgn * (Rt[2, 0] * gx + Rt[2, 1] * gy + Rt[2, 2] * gz)
-            nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+            nx, ny, nz, nn = world_normal(Rt, sgn, gx, gy, gz)
             if not (nn > 0.0 and g == g):
                 g = np.inf
                 nn = 1.0
-            nx /= nn
-            ny /= nn
-            nz /= nn
+            nx, ny, nz = nx / nn, ny / nn, nz / nn
             h = r + 0.5 * g
         point[i, 0] = px - h * nx
         point[i, 1] = py - h * ny
