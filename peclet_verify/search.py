@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Callable, Optional
 
 import numpy as np
 from hypothesis import Phase, given, seed
+from hypothesis.errors import Flaky
 from hypothesis import settings as hypothesis_settings
 
 if TYPE_CHECKING:
@@ -234,12 +235,18 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
         # here) and the examples must not depend on what the process imported before
         test = seed(int.from_bytes(hashlib.sha256(label.encode()).digest()[:8], "little"))(test)
         pool = fixed_constant_pool()
+    flaky = False
     try:
         with pool:
             test()
         err = None
     except AssertionError as exc:
         err = exc
+    except Flaky as exc:
+        # the engine failed an input, then passed it when Hypothesis ran it again (a race, a
+        # stale state): a failure of the engine, reported with the input it first failed on,
+        # never an error of the certifier
+        err, flaky = exc, True
     if seen["unavailable"] is not None:
         return seen["unavailable"]
     worst = seen["worst"]
@@ -262,6 +269,10 @@ def search(check: Callable, strategy, name: Optional[str] = None, settings=None,
             base.worst, base.worst_name, base.worse = res.worst, res.worst_name, res.worse
             base.counterexample = (f"shrunk input:\n{describe(example)}\n\n{res.counterexample}")
             base.details.update(res.details)
+            if flaky:
+                base.counterexample += ("\n(not reproducible: the engine passed this same input "
+                                        "when it was run again)")
+                base.details["flaky"] = True
         else:
             base.counterexample = str(err)
     return base

@@ -213,3 +213,25 @@ def test_the_floor_excused_engine_fails_in_a_real_run_and_the_floor_is_shown(tmp
         == 1e-12
     assert "mass properties (closed forms) (peclet quadrature (body_properties)): declared " \
            "floor 1e-12" in done.stdout
+
+
+def test_an_engine_that_fails_then_passes_the_same_input_is_reported_failed():
+    """A racy engine fails an input and passes it when Hypothesis runs it again: the search
+    reports a failed certificate with that input (marked not reproducible), not a Hypothesis
+    error (found with the upstream wheel's thread race under OMP_WAIT_POLICY=PASSIVE)."""
+    from hypothesis import strategies as st
+
+    from peclet_verify import search as S
+    seen = set()
+
+    def racy(x):
+        first = x not in seen
+        seen.add(x)
+        return S.make_result("racy", not (first and x >= 3), float(first and x >= 3), "x",
+                             "max", f"x = {x} failed on its first run")
+    res = S.search(racy, st.integers(0, 10), name="racy engine",
+                   settings=S.profile_settings(max_examples=20))
+    assert res.status == "failed" and not res.passed
+    assert res.details.get("flaky") is True
+    assert "not reproducible" in res.counterexample and "failed on its first run" in \
+        res.counterexample

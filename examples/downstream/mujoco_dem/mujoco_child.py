@@ -61,6 +61,7 @@ if __name__ == "__main__":
     sys.path.insert(0, os.environ["PECLET_VERIFY_DIR"])
 import scenario as page_scenario  # noqa: E402  (by file location, from PECLET_VERIFY_DIR)
 import wire  # noqa: E402
+from page_arrays import PageArrays  # noqa: E402
 
 BOX = 3                                  # leaf kind id of a box (docs/architecture.md §2)
 ARENA_FIXED, ARENA_PER_BODY, ARENA_PER_CONTACT = 8192, 2048, 4096
@@ -103,7 +104,7 @@ def damping_ratio(e):
     return -le / math.sqrt(math.pi ** 2 + le * le)
 
 
-class MujocoPageSimulation:
+class MujocoPageSimulation(PageArrays):
     """The page's ``Simulation`` API on MuJoCo (see the module's table)."""
 
     def __init__(self, capacity):
@@ -113,7 +114,7 @@ class MujocoPageSimulation:
         self.shapes = []                 # ("sphere", r) or ("box", half, t, q)
         self.walls = []                  # (half, t, q, invert, e, mu)
         self.contact_capacity = None
-        self.arrays = {}
+        super().__init__()                  # the per-body arrays (peclet_verify.page_arrays)
         self.model = self.data = None
 
     # configuration
@@ -124,22 +125,10 @@ class MujocoPageSimulation:
         if px or py or pz:
             raise NotImplementedError("MuJoCo has no periodic boundaries")
 
-    def set_gravity(self, gx, gy, gz):
-        self.gravity = (float(gx), float(gy), float(gz))
-
     def set_material_params(self, e_n, e_t, mu):
         if float(e_t) != 0.0:
             raise NotImplementedError("MuJoCo adapter: no tangential restitution")
         self.e, self.mu = float(e_n), float(mu)
-
-    def set_solver_iterations(self, position, velocity):
-        pass
-
-    def set_contact_capacity(self, n):
-        self.contact_capacity = int(n)
-
-    def set_dt(self, dt):
-        self.dt = float(dt)
 
     def add_sphere_shape(self, radius):
         self.shapes.append(("sphere", float(radius)))
@@ -159,31 +148,6 @@ class MujocoPageSimulation:
 
     def set_material_ids(self, ids):
         raise NotImplementedError("MuJoCo adapter: no per-body materials")
-
-    def _set(self, key, value, cols=None):
-        a = np.asarray(value, float)
-        self.arrays[key] = a if cols is None else a.reshape(-1, cols)
-
-    def set_positions(self, positions):
-        self._set("positions", positions, 3)
-
-    def set_shape_ids(self, ids):
-        self.arrays["shape_ids"] = np.asarray(ids, int)
-
-    def set_quaternions(self, quats):
-        self._set("quaternions", quats, 4)
-
-    def set_velocities(self, v):
-        self._set("velocities", v, 3)
-
-    def set_angular_velocities(self, w):
-        self._set("angular_velocities", w, 3)
-
-    def set_inv_mass(self, inv_mass):
-        self._set("inv_mass", inv_mass)
-
-    def set_inv_inertia(self, inv_inertia):
-        self._set("inv_inertia", inv_inertia, 3)
 
     # the model
     def _geom_material(self):

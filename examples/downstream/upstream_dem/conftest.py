@@ -13,34 +13,25 @@ PECLET_UPSTREAM_VENV names that environment (a directory with ``bin/python``), e
 
 Without it every certificate is skipped, with the reason saying so.
 """
-import os
 
-import pytest
+from peclet_verify.side_venv import side_python, skip_without_venv
 
 VENV_VARIABLE = "PECLET_UPSTREAM_VENV"
 #: Seconds each answer of a wheel may take (a DEM run of a few thousand steps in float32).
 TIMEOUT = 600.0
 
 
+PACKAGES = "peclet-dem==1.1.0 peclet-geom==1.0.1"
+EXAMPLE = "/tmp/updem"
+
+
 def _python():
     """The side venv's interpreter, or None with the reason."""
-    venv = os.environ.get(VENV_VARIABLE)
-    if not venv:
-        return None, (f"{VENV_VARIABLE} is not set: create the venv with `python -m venv "
-                      f"/tmp/updem && /tmp/updem/bin/pip install peclet-dem==1.1.0 "
-                      f"peclet-geom==1.0.1` and set {VENV_VARIABLE}=/tmp/updem")
-    python = os.path.join(venv, "bin", "python")
-    if not os.path.isfile(python):
-        return None, f"{VENV_VARIABLE}={venv}: no interpreter at {python}"
-    return python, None
+    return side_python(VENV_VARIABLE, PACKAGES, EXAMPLE)
 
 
 def pytest_collection_modifyitems(config, items):
-    python, why = _python()
-    if python is None:
-        skip = pytest.mark.skip(reason=f"upstream wheels not available: {why}")
-        for item in items:
-            item.add_marker(skip)
+    skip_without_venv(items, VENV_VARIABLE, PACKAGES, "upstream wheels", EXAMPLE)
 
 
 def _env():
