@@ -12,7 +12,32 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PageArrays"]
+__all__ = ["BOX", "PageArrays", "one_box", "rotation"]
+
+#: leaf kind id of a box in the flat encoding (docs/architecture.md §2)
+BOX = 3
+
+
+def one_box(node_ints, node_reals, root, who):
+    """(half extents (3,) times the leaf's scale, translation (3,), quaternion (x, y, z, w)) of
+    a tree that is one box leaf, from the flat encoding (``node_ints`` rows of 3, ``node_reals``
+    rows of 16); NotImplementedError naming ``who`` for any other tree."""
+    ni = np.asarray(node_ints, int).reshape(-1, 3)
+    nr = np.asarray(node_reals, float).reshape(-1, 16)
+    kind, left, right = ni[int(root)]
+    if kind != BOX or left >= 0 or right >= 0:
+        raise NotImplementedError(f"{who}: only a single box leaf is mapped; got node kind "
+                                  f"{int(kind)}")
+    rec = nr[int(root)]
+    return rec[:3] * rec[15], rec[8:11], rec[11:15]
+
+
+def rotation(q):
+    """Rotation matrix (3, 3), body to world, of the quaternion (x, y, z, w); normalised first."""
+    x, y, z, w = np.asarray(q, float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 class PageArrays:

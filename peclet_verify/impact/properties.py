@@ -20,7 +20,7 @@ from ..search import NOT_APPLICABLE, NOT_CLAIMED, PropertyResult, bad_answer, ma
 from .backend import NORMAL_MODELS
 from .cases import compressive_restitution, hertz_elastic, hooke_elastic, slides, sliding, slip
 
-__all__ = ["TOLERANCES", "PROPS", "claim", "judge"]
+__all__ = ["TOLERANCES", "claim", "judge"]
 
 #: test -> tolerance of its figure
 TOLERANCES = {
@@ -160,6 +160,3 @@ def judge(backend, case) -> PropertyResult:
                        f"{backend_name(backend)} ({backend.model['normal']}): {case.label}: "
                        f"{text}; tol {tol:g}", **errs)
 
-
-#: test -> the property (one function serves all eight)
-PROPS = {n: judge for n in range(1, 9)}

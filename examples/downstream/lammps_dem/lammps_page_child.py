@@ -113,9 +113,9 @@ if __name__ == "__main__":
     sys.path.insert(0, os.environ["PECLET_VERIFY_DIR"])
 import scenario as page_scenario  # noqa: E402  (by file location, from PECLET_VERIFY_DIR)
 import wire  # noqa: E402
-from page_arrays import PageArrays  # noqa: E402
+from page_arrays import PageArrays, one_box  # noqa: E402
+from page_arrays import rotation as _rot  # noqa: E402
 
-BOX = 3                      # leaf kind id of a box (docs/architecture.md §2)
 #: Young's modulus (Pa) and Poisson ratio of every sphere (the page has no stiffness)
 YOUNGS, POISSON = 5e12, 0.3
 #: a wall's modulus over the spheres': LAMMPS builds a wall contact from the wall alone
@@ -132,28 +132,14 @@ V_FLOOR = 10.0
 
 def _one_box(node_ints, node_reals, root, call):
     """(half extents (3,), translation (3,)) of a tree that is one axis-aligned box leaf;
-    NotImplementedError naming ``call`` for anything else."""
-    ni = np.asarray(node_ints, int).reshape(-1, 3)
-    nr = np.asarray(node_reals, float).reshape(-1, 16)
-    kind, left, right = ni[int(root)]
-    if kind != BOX or left >= 0 or right >= 0:
-        raise NotImplementedError(f"LAMMPS adapter: {call}: only a single box leaf is mapped "
-                                  f"(to a region block); got node kind {int(kind)}")
-    rec = nr[int(root)]
-    q = rec[11:15] / np.linalg.norm(rec[11:15])
+    NotImplementedError naming ``call`` for anything else (a region block is axis-aligned)."""
+    half, centre, q = one_box(node_ints, node_reals, root, f"LAMMPS adapter: {call}")
+    q = q / np.linalg.norm(q)
     if not (abs(q[3]) == 1.0 and not q[:3].any()):
         raise NotImplementedError(f"LAMMPS adapter: {call}: a rotated box (quaternion "
-                                  f"{rec[11:15].tolist()}) is not mapped (a region block is "
+                                  f"{q.tolist()}) is not mapped (a region block is "
                                   "axis-aligned)")
-    return rec[:3] * rec[15], rec[8:11]
-
-
-def _rot(q):
-    """Rotation matrix of the quaternion (x, y, z, w)."""
-    x, y, z, w = np.asarray(q, float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return half, centre
 
 
 def _axis_angle(q):

@@ -61,31 +61,10 @@ if __name__ == "__main__":
     sys.path.insert(0, os.environ["PECLET_VERIFY_DIR"])
 import scenario as page_scenario  # noqa: E402  (by file location, from PECLET_VERIFY_DIR)
 import wire  # noqa: E402
-from page_arrays import PageArrays  # noqa: E402
+from page_arrays import PageArrays, one_box  # noqa: E402
+from page_arrays import rotation as _rot  # noqa: E402
 
-BOX = 3                                  # leaf kind id of a box (docs/architecture.md §2)
 ARENA_FIXED, ARENA_PER_BODY, ARENA_PER_CONTACT = 8192, 2048, 4096
-
-
-def _one_box(node_ints, node_reals, root):
-    """(half extents (3,), translation (3,), quaternion (x, y, z, w)) of a tree that is one
-    box leaf; NotImplementedError for anything else."""
-    ni = np.asarray(node_ints, int).reshape(-1, 3)
-    nr = np.asarray(node_reals, float).reshape(-1, 16)
-    kind, left, right = ni[int(root)]
-    if kind != BOX or left >= 0 or right >= 0:
-        raise NotImplementedError(f"MuJoCo adapter: only a single box leaf becomes a MuJoCo "
-                                  f"geom; got node kind {int(kind)}")
-    rec = nr[int(root)]
-    s = rec[15]
-    return rec[:3] * s, rec[8:11], rec[11:15]
-
-
-def _rot(q):
-    x, y, z, w = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def _wxyz(q):
@@ -135,11 +114,11 @@ class MujocoPageSimulation(PageArrays):
         return len(self.shapes) - 1
 
     def add_scene_shape(self, node_ints, node_reals, root, shell_points, bounding_radius):
-        self.shapes.append(("box",) + _one_box(node_ints, node_reals, root))
+        self.shapes.append(("box",) + one_box(node_ints, node_reals, root, "MuJoCo adapter"))
         return len(self.shapes) - 1
 
     def add_analytic_wall(self, node_ints, node_reals, root, invert, e_n, mu):
-        self.walls.append(_one_box(node_ints, node_reals, root) + (bool(invert), float(e_n),
+        self.walls.append(one_box(node_ints, node_reals, root, "MuJoCo adapter") + (bool(invert), float(e_n),
                                                                     float(mu)))
         return len(self.walls) - 1
 
