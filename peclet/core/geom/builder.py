@@ -27,9 +27,10 @@ from .bounds import combine
 from .encoding import (INST_INT_COLS, INST_REAL_COLS, INST_ROOT, INST_ROTATION, INST_SCALE,
                        INST_TRANSLATION, NODE_INT_COLS, NODE_REAL_COLS, PARAMS, ROTATION, SCALE,
                        TRANSLATION, instance_transform, node_transform)
-from .leaves import (DIFFERENCE, INTERSECTION, LEAF_NAMES, LEAVES_BY_KIND, MAX_PARAMS,
+from .leaves import (DATA, DIFFERENCE, GRID, INTERSECTION, LEAF_NAMES, LEAVES_BY_KIND, MAX_PARAMS,
                      OPERATOR_NAMES, UNION, leaf_spec)
 from .program import Program, compile_root
+from .sampled import check_grid_values, data_rows, grid_lipschitz, grid_radius, grid_values
 from .transforms import as_quaternion, compose, transform_ball
 
 #: Most lattice points one bake may hold (1024^3 values are 8 GiB already).
@@ -85,6 +86,7 @@ class SceneBuilder:
         self._ball_r: list[float] = []
         self._cert: list[bool] = []
         self._lip: list[bool] = []
+        self._lipk: list[float] = []          # a Lipschitz constant per node (inf: none known)
         self._need: list[int] = []
         self._inst_roots: list[int] = []
         self._inst_reals: list[np.ndarray] = []
@@ -101,6 +103,34 @@ class SceneBuilder:
         """
         spec, prm = leaf_params(kind, params)
         return self._append(spec.kind, -1, -1, prm, translation, rotation, scale)
+
+    def add_grid(self, values, spacing, translation=None, rotation=None, scale=None) -> int:
+        """Add a grid leaf: signed-distance samples ``values`` (nx, ny, nz), indexed (x, y, z),
+        on a lattice of ``spacing`` (a length > 0) centred on the leaf's origin (sample (i, j, k)
+        at ``((i - (nx - 1) / 2) h, ...)``); the samples become data rows of the node table
+        just before the leaf (:mod:`peclet.core.geom.sampled`). ``values``: 2 to 1024 finite
+        samples per axis, some < 0, all > 0 on the lattice's faces (the solid inside with a
+        margin). Field: trilinear inside, distance to the box plus the box value outside
+        (:mod:`peclet.core.geom.grid_kernel`). Returns the leaf's node index; the leaf is
+        neither exact nor 1-Lipschitz, so it is never certified (its ball is measured, §4).
+        For meshes, callables and saved grids see :mod:`peclet.core.geom.grids`."""
+        v, h = check_grid_values(values, spacing)
+        first = len(self._ints)
+        for row in data_rows(v):
+            self._append_data(row)
+        params = np.array([first, *v.shape, h], np.float64)
+        return self._append(GRID, -1, -1, params, translation, rotation, scale)
+
+    def _append_data(self, row):
+        # a data row: not a node; placeholders keep the per-node lists aligned
+        self._ints.append((DATA, -1, -1))
+        self._reals.append(np.asarray(row, np.float64))
+        self._ball_c.append(np.zeros(3))
+        self._ball_r.append(float("nan"))
+        self._cert.append(False)
+        self._lip.append(False)
+        self._lipk.append(math.inf)
+        self._need.append(0)
 
     def add_union(self, a, b, translation=None, rotation=None, scale=None) -> int:
         """min(a, b): the solid covered by either child."""
@@ -137,11 +167,14 @@ class SceneBuilder:
         b = self._check_index(b, "b")
         return self._append(op, a, b, np.zeros(MAX_PARAMS), translation, rotation, scale)
 
-    def _check_index(self, idx, name) -> int:
+    def _check_index(self, idx, name, data_ok=False) -> int:
         n = len(self._ints)
         if isinstance(idx, (bool, np.bool_)) or not isinstance(idx, (int, np.integer)) \
                 or not 0 <= idx < n:
             raise PecletArgumentError(name, f"an existing node index (an int in [0, {n}))", idx)
+        if not data_ok and self._ints[idx][0] == DATA:
+            raise PecletArgumentError(name, "a node index, not a data row (a grid leaf's "
+                                      "samples)", idx)
         return int(idx)
 
     def _append(self, kind, left, right, params, translation, rotation, scale) -> int:
@@ -149,13 +182,22 @@ class SceneBuilder:
         if left < 0:
             spec = LEAVES_BY_KIND[kind]
             c = np.zeros(3)
-            r = float(spec.radius(params))
+            if spec.sampled:
+                values, h = check_grid_values(grid_values(
+                    [k for k, _, _ in self._ints], self._reals, params, len(self._ints)),
+                    params[4], "params")
+                r = grid_radius(values, h)
+                lipk = grid_lipschitz(values, h)
+            else:
+                r = float(spec.radius(params))
+                lipk = 1.0 if spec.lipschitz else math.inf
             cert, lip, need = spec.exact, spec.lipschitz, 1
         else:
             ball_l = (self._ball_c[left], self._ball_r[left], self._cert[left], self._lip[left])
             ball_r = (self._ball_c[right], self._ball_r[right], self._cert[right],
                       self._lip[right])
             c, r, cert, lip = combine(kind, ball_l, ball_r)
+            lipk = max(self._lipk[left], self._lipk[right])   # min and max keep the larger
             need = max(self._need[left], self._need[right] + 1)
             if need > K.MAX_STACK:
                 raise PecletArgumentError(
@@ -175,6 +217,7 @@ class SceneBuilder:
         self._ball_r.append(float(r))
         self._cert.append(bool(cert))
         self._lip.append(bool(lip))
+        self._lipk.append(float(lipk))
         self._need.append(int(need))
         return len(self._ints) - 1
 
@@ -194,9 +237,18 @@ class SceneBuilder:
         """True if every leaf under ``root`` is 1-Lipschitz (so phi is)."""
         return self._lip[self._check_index(root, "root")]
 
+    def lipschitz_constant(self, root) -> float:
+        """A proven Lipschitz constant of ``root``'s field (dimensionless; conformal transforms
+        keep it): 1.0 when every leaf is 1-Lipschitz, the largest leaf's where grid leaves
+        (measured from their samples, :func:`~peclet.core.geom.sampled.grid_lipschitz`) are
+        present, ``inf`` with a leaf that has none (ellipsoid, superquadric). The quadrature
+        searches phi / L, which has phi's solid and is 1-Lipschitz."""
+        return self._lipk[self._check_index(root, "root")]
+
     def node(self, index):
-        """(kind, left, right, params (8,), translation, quaternion, scale) of a node."""
-        index = self._check_index(index, "index")
+        """(kind, left, right, params (8,), translation, quaternion, scale) of a node; for a
+        data row (kind DATA) the same slots of its row of samples."""
+        index = self._check_index(index, "index", data_ok=True)
         rec = self._reals[index]
         kind, left, right = self._ints[index]
         return (kind, left, right, rec[PARAMS].copy(), rec[TRANSLATION].copy(),
@@ -347,7 +399,12 @@ class SceneBuilder:
         b = cls()
         for i, (kind, left, right) in enumerate(ni.tolist()):
             try:
-                if kind in OPERATOR_NAMES:
+                if kind == DATA:
+                    if left != -1 or right != -1:
+                        raise PecletArgumentError("left", "-1 (and right -1) for a data row",
+                                                  (left, right))
+                    b._append_data(nr[i])
+                elif kind in OPERATOR_NAMES:
                     for nm, c in (("left", left), ("right", right)):
                         if not 0 <= c < i:
                             raise PecletArgumentError(nm, f"a child index in [0, {i}) (children "

@@ -28,6 +28,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .grid_kernel import grid_eval
+
 #: Column layout of a leaf row.
 LEAF_T = 8
 LEAF_R = 11
@@ -299,6 +301,9 @@ def leaf_eval(kind, L, j, x, y, z):
         ny = L[j, 1]
         nz = L[j, 2]
         return nx * x + ny * y + nz * z - L[j, 3], nx, ny, nz, 0
+
+    if kind == 0:  # grid: a sampled field (grid_kernel.py)
+        return grid_eval(L, j, x, y, z)
 
     return np.nan, np.nan, np.nan, np.nan, 0
 

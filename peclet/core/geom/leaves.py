@@ -18,6 +18,11 @@ lipschitz
     ``|phi(p) - phi(q)| <= |p - q|``. Every exact leaf is 1-Lipschitz; ``hollow_cylinder_shell``
     is 1-Lipschitz but under-estimates the distance (sign-exact only); ``ellipsoid`` and
     ``superquadric`` are neither.
+sampled
+    The ``grid`` leaf (kind 0): its field is data, samples in data rows of the node table
+    (:mod:`peclet.core.geom.sampled`); neither exact nor 1-Lipschitz, its ball and Lipschitz
+    constant are measured from the samples by the builder. It is not in :data:`LEAF_NAMES`
+    (leaves authored from parameters alone), but in :data:`SAMPLED_LEAF_NAMES`.
 """
 from __future__ import annotations
 
@@ -31,6 +36,11 @@ MAX_PARAMS = 8
 
 #: Kind ids of the CSG operators (docs/architecture.md §2).
 UNION, INTERSECTION, DIFFERENCE = 32, 33, 34
+#: Kind id of the grid leaf (a sampled field; its samples live in data rows, below).
+GRID = 0
+#: Kind id of a *data row* of the node table: not a node, but 16 samples of a grid leaf's
+#: field in its ``node_reals`` row (docs/architecture.md §2, :mod:`peclet.core.geom.sampled`).
+DATA = 31
 OPERATOR_NAMES = {UNION: "union", INTERSECTION: "intersection", DIFFERENCE: "difference"}
 
 
@@ -62,6 +72,9 @@ class LeafSpec:
     radius: Callable[[np.ndarray], float]
     #: Validated params -> :class:`ClosedForm`, or None where the leaf has no closed form.
     mass_properties: Optional[Callable[[np.ndarray], "ClosedForm"]] = None
+    #: True for a leaf whose field is data (the grid): its params address data rows of the
+    #: node table and its radius is measured from them (:mod:`peclet.core.geom.sampled`).
+    sampled: bool = False
 
     @property
     def n_params(self) -> int:
@@ -137,6 +150,24 @@ def _check_ellipsoid(a):
 
 
 SUPERQUADRIC_E_RANGE = (0.1, 1.0)
+
+#: Samples per axis a grid leaf accepts (2 is one cell; 1024^3 doubles would be 8 GiB).
+GRID_DIM_RANGE = (2, 1024)
+
+
+def _check_grid(a):
+    names = ("first_row", "nx", "ny", "nz", "spacing")
+    _nonnegative("grid", names, a, [0])
+    _positive("grid", names, a, [4])
+    lo, hi = GRID_DIM_RANGE
+    for i in (0, 1, 2, 3):
+        if not float(a[i]).is_integer():
+            raise ValueError(f"grid: parameter {names[i]!r} must be an integer, got {a[i]!r}")
+    for i in (1, 2, 3):
+        if not lo <= a[i] <= hi:
+            raise ValueError(f"grid: parameter {names[i]!r} (samples on an axis) must be in "
+                             f"[{lo}, {hi}], got {a[i]!r}")
+    return a
 
 
 def _check_superquadric(a):
@@ -281,11 +312,20 @@ _LEAVES = (
     LeafSpec(10, "half_space", ("nx", "ny", "nz", "offset"), True, True,
              "solid where n.p <= offset: n.p - offset (n normalised); unbounded",
              _check_half_space, lambda a: float("inf")),
+    # the radius of a grid is measured from its samples by the builder (sampled.py), so the
+    # table's radius is never called for it
+    LeafSpec(GRID, "grid", ("first_row", "nx", "ny", "nz", "spacing"), False, False,
+             "trilinear in a centred lattice of samples; outside it, the distance to the "
+             "lattice's box plus the value at the nearest box point",
+             _check_grid, lambda a: float("nan"), sampled=True),
 )
 
 LEAVES_BY_KIND: dict[int, LeafSpec] = {s.kind: s for s in _LEAVES}
 LEAVES_BY_NAME: dict[str, LeafSpec] = {s.name: s for s in _LEAVES}
-LEAF_NAMES = tuple(s.name for s in _LEAVES)
+#: The leaves authored from their parameters alone (random trees draw from these).
+LEAF_NAMES = tuple(s.name for s in _LEAVES if not s.sampled)
+#: The leaves whose field is data (:mod:`peclet.core.geom.sampled`).
+SAMPLED_LEAF_NAMES = tuple(s.name for s in _LEAVES if s.sampled)
 
 
 def leaf_spec(kind) -> LeafSpec:
@@ -297,7 +337,7 @@ def leaf_spec(kind) -> LeafSpec:
     else:
         spec = None
     if spec is None:
-        raise ValueError(f"kind must be one of {list(LEAF_NAMES)} or their ids "
+        raise ValueError(f"kind must be one of {list(LEAVES_BY_NAME)} or their ids "
                          f"{sorted(LEAVES_BY_KIND)}, got {kind!r}")
     return spec
 

@@ -35,6 +35,7 @@ from .elements import ELEMENTS, Element, parse_element
 from .freeze import Pack
 from .material import Material, as_material
 from .threads import set_threads
+from .user_shapes import grid_npz_element, is_grid_npz, is_user_file, user_file_element
 from .progress import Progress, compile_note, ms_per_step
 from .protocols import G, Body, RunState, drive, insert_bodies, new_simulation, parse_protocol
 
@@ -78,8 +79,9 @@ ITERATIONS = (10, 8)
 BUILD = dict(n=32, shell_resolution=112, target_shell_points=1200)
 
 ELEMENT_FORMS = (f"one of {sorted(ELEMENTS)} (optionally with parameters, NAME:KEY=V,...), an "
-                 "Element, a (builder, root) pair or a path to an .npz holding node_ints, "
-                 "node_reals, root")
+                 "Element, a (builder, root) pair, a path to an .npz holding node_ints, "
+                 "node_reals, root or a saved grid (values, spacing, origin), or a mesh "
+                 "file (.stl/.obj/.ply[:scale=S,resolution=H])")
 
 
 @dataclass
@@ -162,11 +164,16 @@ def resolve_element(value):
         return value
     if isinstance(value, str) and value in ELEMENTS:
         return ELEMENTS[value]()
+    if is_user_file(value):
+        return user_file_element(value, _user_element)
     if (isinstance(value, str) and ":" in value and not value.endswith(".npz")) \
             or (isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], str)
                 and isinstance(value[1], dict)):
         kind, params = parse_element(value, "element")
         return ELEMENTS[kind](**params)
+    if isinstance(value, (str, os.PathLike)) and str(value).endswith(".npz") \
+            and os.path.isfile(value) and is_grid_npz(value):
+        return grid_npz_element(value, _user_element)
     if isinstance(value, (str, os.PathLike)) and str(value).endswith(".npz") \
             and os.path.isfile(value):
         try:

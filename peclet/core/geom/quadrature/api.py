@@ -8,6 +8,7 @@ line search (:mod:`.line_search`). The package docstring summarises the algorith
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -164,10 +165,14 @@ def body_properties(builder, root, lo, hi, density=1.0, n=32, tol=1e-8, cache=No
         _check_faces(builder, root, lo_a, hi_a, m)
         if faces is not None:
             cache[faces] = True
-    lip = bool(builder.is_lipschitz(root))
+    # a tree with a finite Lipschitz constant L (a grid leaf's is measured) is searched as
+    # phi / L, which is 1-Lipschitz with the same solid; L = 1 for exact leaves (no change)
+    lconst = float(builder.lipschitz_constant(root))
+    lip = math.isfinite(lconst)
     budget = 0 if not lip else (LINE_EXTRA if tol < CERTIFY_TOL else LINE_EXTRA_LOOSE)
     top = max(1, -(-int(n) // V_PROBES))
-    mom, err, diag = integrate_body(prog, lo_a, hi_a, top, budget, tol, cache)
+    mom, err, diag = integrate_body(prog, lo_a, hi_a, top, budget, tol, cache,
+                                    kinv=1.0 / lconst if lip else 1.0)
     cen = 0.5 * (lo_a + hi_a)
     if diag[3] != 0.0:
         raise ValueError(f"a line crossed the surface more than {MAX_BREAKS} times, or a cell "

@@ -23,7 +23,8 @@ from .line_search import Line, line_roots, run_moments
 from .pieces import merge, piece_mids, piece_node, sorted_seeds
 
 #: A cut cell's fixed data, passed to the break search and the rule as one value: the program
-#: tuple P = (ops, leaf_kind, leaf_reals, op_begin, op_end), the height axis ak and the outer
+#: tuple P = (ops, leaf_kind, leaf_reals, op_begin, op_end, 1 / L) (L the tree's Lipschitz
+#: constant, :meth:`SceneBuilder.lipschitz_constant`; 1.0 for a 1-Lipschitz tree), the height axis ak and the outer
 #: and inner axes iu, iv, the cell's extent [a, b] on ak, [u0, u1] on iu, [v0, v1] on iv, the
 #: line search's halving cap lip (0: not 1-Lipschitz), the moments' origin cen (3,), the
 #: evaluator's stack st and the scratch S (SCRATCH_ROWS, MAX_BREAKS).
@@ -262,11 +263,12 @@ def integrate_cell(P, clo, chi, lip, G, cen, st, S, seeds, nseed, a5, a7):
     and exact, for a cell the certificate decides). Returns the error estimate max |a7 - a5|,
     ``math.inf`` when the surface was found in the cell by projection but not by the rule
     (split it whatever the tolerance), or -1.0 on an overflow."""
-    ops, lk, lr, ob, oe = P
+    ops, lk, lr, ob, oe, kinv = P
     a5[:] = 0.0
     a7[:] = 0.0
     f, gx, gy, gz = K.eval_point(ops, lk, lr, ob, oe, 0.5 * (clo[0] + chi[0]),
                                  0.5 * (clo[1] + chi[1]), 0.5 * (clo[2] + chi[2]), st)
+    f = f * kinv            # phi / L: 1-Lipschitz (exact for L = 1)
     hd = 0.5 * math.sqrt((chi[0] - clo[0]) ** 2 + (chi[1] - clo[1]) ** 2
                          + (chi[2] - clo[2]) ** 2)
     if lip > 0 and f >= hd:

@@ -59,11 +59,14 @@ def _phi_d(line, t):
     else:
         p2 = v
     f, g0, g1, g2 = K.eval_point(P[0], P[1], P[2], P[3], P[4], p0, p1, p2, st)
+    # P[5] = 1 / L (the tree's Lipschitz constant): the searched field is phi / L, 1-Lipschitz
+    # with phi's zero set; exact (x * 1.0) for a 1-Lipschitz tree
+    k = P[5]
     if ak == 0:
-        return f, g0
+        return f * k, g0 * k
     if ak == 1:
-        return f, g1
-    return f, g2
+        return f * k, g1 * k
+    return f * k, g2 * k
 
 
 @njit(cache=True, inline="always")

@@ -17,8 +17,9 @@ from .cell_rule import cell_bound, integrate_cell
 from .constants import EPS, MAX_BREAKS, MAX_CELLS, MAX_DEPTH, ROUND_ULPS, SCRATCH_ROWS, SEEDS
 
 
-def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
-    """Integrate every cell of ``cells`` (N, 6: lo, hi) on its own.
+def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen, kinv=1.0):
+    """Integrate every cell of ``cells`` (N, 6: lo, hi) on its own; ``kinv`` is 1 / L, L the
+    tree's Lipschitz constant (the line search proves on phi / L).
 
     Returns the raw moments (N, 10: 1, x, y, z, x^2, y^2, z^2, xy, xz, yz, relative to cen)
     by the 7-point rules, their error estimates (N, 10) and a code per cell: 0 integrated;
@@ -36,8 +37,8 @@ def integrate_cells(ops, lk, lr, ob, oe, cells, lip, g5x, g5w, g7x, g7w, cen):
     mom = np.zeros((n, 10))
     err = np.zeros((n, 10))
     code = np.zeros(n, dtype=np.int64)
-    run_shares(_integrate_share, n, (ops, lk, lr, ob, oe), (g5x, g5w, g7x, g7w), cells, lip,
-               cen, mom, err, code, dynamic=True)
+    run_shares(_integrate_share, n, (ops, lk, lr, ob, oe, float(kinv)), (g5x, g5w, g7x, g7w),
+               cells, lip, cen, mom, err, code, dynamic=True)
     return mom, err, code
 
 
@@ -96,8 +97,8 @@ def cached_cells(cache, P, cells, lip, cen):
     keys = [c.tobytes() for c in cells]
     missing = [i for i, k in enumerate(keys) if k not in rows]
     if missing:
-        m, e, c = integrate_cells(*P, np.ascontiguousarray(cells[missing]), lip, *_G5, *_G7,
-                                  cen)
+        m, e, c = integrate_cells(*P[:5], np.ascontiguousarray(cells[missing]), lip, *_G5,
+                                  *_G7, cen, kinv=P[5])
         for j, i in enumerate(missing):
             rows[keys[i]] = (m[j], e[j], c[j])
     got = [rows[k] for k in keys]
@@ -118,7 +119,7 @@ def _children(cells):
     return out.reshape(-1, 6)
 
 
-def integrate_body(prog, lo, hi, n, lip, tol, cache=None):
+def integrate_body(prog, lo, hi, n, lip, tol, cache=None, kinv=1.0):
     """Raw moments (10,) of the solid relative to the box centre, their error estimates (10,)
     and diagnostics (cells integrated, deepest level, cells left unconverged at MAX_DEPTH,
     overflow flag), by global adaptive refinement.
@@ -130,9 +131,10 @@ def integrate_body(prog, lo, hi, n, lip, tol, cache=None):
     the surface was seen but not integrated are always split), down to MAX_DEPTH levels. So
     ``tol`` is the relative accuracy of the solid's moments, spent where the error is.
 
+    ``kinv``: 1 / L, L the tree's Lipschitz constant (1.0 for a 1-Lipschitz tree).
     ``cache`` (optional dict, see :func:`cached_cells`) shares integrated cells between calls:
     the result is bitwise the same with or without it."""
-    P = (prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end)
+    P = (prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end, float(kinv))
     cen = 0.5 * (lo + hi)
     edges = [np.linspace(lo[d], hi[d], n + 1) for d in range(3)]
     for d in range(3):
@@ -157,7 +159,8 @@ def integrate_body(prog, lo, hi, n, lip, tol, cache=None):
                 f"{len(new)} more asked for): the solid is far thinner than its box [lo, hi] "
                 "or tol is out of reach; give a box closer to the solid, or a looser tol")
         if cache is None:
-            m_new, e_new, c_new = integrate_cells(*P, new, lip, *_G5, *_G7, cen)
+            m_new, e_new, c_new = integrate_cells(*P[:5], new, lip, *_G5, *_G7, cen,
+                                                  kinv=P[5])
         else:
             m_new, e_new, c_new = cached_cells(cache, P, new, lip, cen)
         visited += len(new)

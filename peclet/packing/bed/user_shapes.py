@@ -1,0 +1,99 @@
+"""Elements from a user's own files: a triangle mesh or a saved grid (issue 41).
+
+``--element pellet.stl`` (or .obj, .ply) with options ``pellet.stl:scale=0.04,resolution=0.02``
+(``scale`` multiplies the file's coordinates, e.g. 1/25 for a 25 mm pellet drawn in mm packed in
+units of its own size; ``resolution`` is the grid spacing in the scaled units, default a sixth
+of the mesh's thickness 2 V / A), and ``--element bean.npz`` for a grid saved by
+:func:`peclet.core.geom.grids.save_grid`. Both become a grid leaf
+(:mod:`peclet.core.geom.grids`); the packing layer measures it like any tree.
+
+Packs are made in units of the element's size (the library's elements are about 1 across), so
+a mesh whose largest extent after ``scale`` is outside :data:`EXTENT_RANGE` is refused with the
+scale that would bring it to 1: a file in mm read as if in element units is the usual cause.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from peclet.core import geom
+from peclet.core.geom import grids
+from peclet.core.validation import PecletArgumentError
+
+__all__ = ["MESH_SUFFIXES", "EXTENT_RANGE", "is_user_file", "user_file_element"]
+
+MESH_SUFFIXES = (".stl", ".obj", ".ply")
+#: Accepted largest extent of a user's element (pack units, the library's elements ~1).
+EXTENT_RANGE = (0.05, 20.0)
+_OPTIONS = {"scale": (0.0, math.inf), "resolution": (0.0, math.inf)}
+
+
+def _split(value):
+    path, sep, rest = str(value).partition(":")
+    return path, (rest if sep else "")
+
+
+def is_user_file(value):
+    """True for a string naming a mesh file (with or without options) or a grid .npz."""
+    if not isinstance(value, (str, os.PathLike)):
+        return False
+    path, _ = _split(os.fspath(value))
+    return path.lower().endswith(MESH_SUFFIXES)
+
+
+def _options(value, text):
+    out = {}
+    for tok in filter(None, (t.strip() for t in text.split(","))):
+        k, eq, v = tok.partition("=")
+        k = k.strip()
+        if not eq or k not in _OPTIONS:
+            raise PecletArgumentError("element", f"MESH[:KEY=V,...] with KEY in "
+                                      f"{sorted(_OPTIONS)}", value, f"bad item {tok!r}")
+        try:
+            x = float(v)
+        except ValueError:
+            raise PecletArgumentError("element", f"{k} a number", value) from None
+        lo, hi = _OPTIONS[k]
+        if not (lo < x < hi):
+            raise PecletArgumentError("element", f"{k} > {lo:g} and finite", value)
+        out[k] = x
+    return out
+
+
+def user_file_element(value, make_element):
+    """(builder, root, name) of a mesh file's grid leaf (module notes); ``make_element``
+    is called as ``make_element(builder, root, name)`` and its result returned."""
+    path, text = _split(os.fspath(value))
+    opts = _options(value, text)
+    if not os.path.isfile(path):
+        raise PecletArgumentError("element", "a path to an existing mesh file", path)
+    v, f = grids.load_mesh(path)
+    scale = opts.get("scale", 1.0)
+    extent = float((v.max(axis=0) - v.min(axis=0)).max()) * scale
+    lo, hi = EXTENT_RANGE
+    if not lo <= extent <= hi:
+        raise PecletArgumentError(
+            "element", f"a mesh whose largest extent (times scale) is in [{lo:g}, {hi:g}] "
+            "element units", value, f"extent {extent:.4g}: a file in other units? try "
+            f"{path}:scale={scale / extent:.4g}")
+    b = geom.SceneBuilder()
+    root = grids.grid_from_mesh(b, (v, f), spacing=opts.get("resolution"), scale=scale)
+    return make_element(b, root, os.path.basename(path))
+
+
+def grid_npz_element(path, make_element):
+    """The grid leaf of a grid .npz (``values``, ``spacing``, ``origin``) as an element."""
+    b = geom.SceneBuilder()
+    root = grids.grid_from_npz(b, path)
+    return make_element(b, root, os.path.basename(os.fspath(path)))
+
+
+def is_grid_npz(path):
+    """True if ``path`` is an .npz holding a saved grid (``values``, ``spacing``)."""
+    try:
+        with np.load(os.fspath(path), allow_pickle=False) as z:
+            return "values" in z.files and "spacing" in z.files
+    except (OSError, ValueError):
+        return False
