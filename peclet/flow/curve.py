@@ -48,8 +48,9 @@ choice of the viscosity nu and the force g:
 **Resolution limit** (measured, D/8, grown 40-sphere cell, corrected linear rule, Lambda =
 1/4): steady up to Re 4.9 (max|u| / nu = 8.9 there), diverged at Re 8 (predicted 14) and 21.5
 (38) from the previous field and from rest alike, the growth starting at near-wall nodes with
-10-11 cut links; the reachable Re grows about in proportion to the resolution. A run that
-diverges is reported as such with its predicted cell Reynolds number max|u| / nu.
+10-11 cut links. The reachable Re grows with the resolution: 90 spheres in column:4 were
+steady to Re 8.5 at D/8 and 17.7 at D/12 (both diverged at the next point, max|u| / nu 49 and
+34). A run that diverges is reported as such with its predicted cell Reynolds number.
 
 **Forchheimer fit** (:func:`forchheimer_fit`): dP/L = (mu / k) U + beta rho U^2, in the
 dimensionless form ``Pi = (dP/L) D^3 / (rho nu^2) = Re / k + beta Re^2`` (k in D^2, beta in
