@@ -4,6 +4,7 @@ needs, and the field on it (:func:`pack_domain`); the module notes of
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,6 +21,19 @@ Y_MODES = ("mirror", "wrap", "open")
 BYTES_PER_CELL = 512
 #: Peak bytes of a flow solve besides its lattice (the pack's scene, Numba's kernels).
 BASE_BYTES = 300 * 2 ** 20
+
+
+@dataclass(frozen=True)
+class PeriodicCell:
+    """The container of a triply periodic pack (a grown bed: ``peclet pack --protocol grow``):
+    periodic in x and z with the pack's box and along y with period ``Ly`` (D); the lattice
+    covers one whole period [0, Ly) in y, so there is no window and no seam: the body force is
+    the exact dP/L along any axis."""
+    Ly: float
+    kind: str = "periodic"
+
+    def label(self):
+        return f"periodic cell (y period {self.Ly:g} D)"
 
 
 def wrap_y(pts, y0, H, y_mode):
@@ -50,8 +64,14 @@ def lattice_dims(pack, resolution, window=None, y_mode="wrap", container=None):
     from peclet.packing.analysis.geometry import bulk_windows
     resolution = check_float("resolution", resolution, 4.0, 256.0)
     y_mode = check_choice("y_mode", y_mode, Y_MODES)
-    column = container is not None
+    cell = isinstance(container, PeriodicCell)
+    column = container is not None and not cell
     Lx, Lz = (float(v) for v in pack.box)
+    if cell:
+        if window is not None or y_mode != "wrap":
+            raise PecletArgumentError("window", "None with y_mode 'wrap' for a triply periodic "
+                                      "pack (the lattice covers its whole period)", window)
+        window = (0.0, float(container.Ly))
     if column:
         h = 1.0 / resolution
         R = float(container.radius)
@@ -73,6 +93,10 @@ def lattice_dims(pack, resolution, window=None, y_mode="wrap", container=None):
     y0 = check_float("window[0]", window[0])
     y1 = check_float("window[1]", window[1], y0, lo_open=True)
     ny_half = max(2, int(round((y1 - y0) / h)))
+    if cell and abs((y1 - y0) / h - ny_half) > 1e-9 * ny_half:
+        raise PecletArgumentError("resolution", "a resolution that makes every side of the "
+                                  f"periodic cell ({Lx:g} x {y1 - y0:g} x {Lz:g} D) a whole "
+                                  "number of cells", resolution)
     H = ny_half * h
     ny = 2 * ny_half if y_mode == "mirror" else ny_half
     return nx, ny, nz, h, y0, y1, H
@@ -98,14 +122,16 @@ def pack_domain(pack, resolution, window=None, y_mode="wrap", container=None):
     """(grid, phi, info) for a pack: the lattice over the window and the field on it.
 
     resolution: cells per D (>= 4). window: (y0, y1) in D, default the page's first bulk
-    window (a column: :func:`column_window`). y_mode: see the module docstring. container:
-    None (the periodic box) or a column Container (:func:`pack_container`). The box sides must
+    window (a column: :func:`column_window`; a :class:`PeriodicCell`: its whole period, no
+    window allowed). y_mode: see the module docstring. container: None (the periodic box), a
+    column Container (:func:`pack_container`) or a :class:`PeriodicCell`. The box sides must
     be whole numbers of cells (to 1e-9 of a cell); a column's lattice is the square of
     2 ceil(R / h) + 2 nodes about its axis (the outer nodes are in the wall).
     """
     y_mode = check_choice("y_mode", y_mode, Y_MODES)
     nx, ny, nz, h, y0, y1, H = lattice_dims(pack, resolution, window, y_mode, container)
-    column = container is not None
+    cell = isinstance(container, PeriodicCell)
+    column = container is not None and not cell
     Lx, Lz = (float(v) for v in pack.box)
     if column:
         R = float(container.radius)
@@ -116,6 +142,8 @@ def pack_domain(pack, resolution, window=None, y_mode="wrap", container=None):
     if not column:
         pos[:, 0] = np.mod(pos[:, 0], Lx)
         pos[:, 2] = np.mod(pos[:, 2], Lz)
+    if cell:
+        pos[:, 1] = np.mod(pos[:, 1], H)
     for p, q in zip(pos, pack.quaternions):
         b.add_instance(pack.home_root, translation=p, rotation=q)
     big = 1e6
@@ -128,6 +156,13 @@ def pack_domain(pack, resolution, window=None, y_mode="wrap", container=None):
             pts = wrap_y(np.array(points, dtype=np.float64, copy=True), y0, H, y_mode)
             return np.minimum(b.eval_scene(pts), wb.eval_root(wroot, pts))
         origin = (cx - 0.5 * (nlat - 1) * h, y0 + 0.5 * h, cz - 0.5 * (nlat - 1) * h)
+    elif cell:
+        cbox = ((0.0, 0.0, 0.0), (Lx, H, Lz))
+
+        def phi(points):
+            pts = wrap_y(np.array(points, dtype=np.float64, copy=True), 0.0, H, "wrap")
+            return b.eval_scene(pts, box=cbox, periodic=(True, True, True))
+        origin = (0.5 * h, 0.5 * h, 0.5 * h)
     else:
         def phi(points):
             pts = wrap_y(np.array(points, dtype=np.float64, copy=True), y0, H, y_mode)
@@ -136,7 +171,8 @@ def pack_domain(pack, resolution, window=None, y_mode="wrap", container=None):
     grid = Grid(origin=origin, h=h, dims=(nx, ny, nz),
                 periodic=(not column, y_mode != "open", not column))
     info = {"window": [y0, y0 + H], "y_mode": y_mode, "h_D": h, "dims": [nx, ny, nz],
-            "box": [Lx, Lz], "container": "column" if column else "box"}
+            "box": [Lx, Lz], "container": "column" if column else "periodic" if cell
+            else "box"}
     if column:
         info.update({"column_diameter_D": 2.0 * R, "axis_xz": [float(cx), float(cz)]})
     return grid, phi, info

@@ -19,7 +19,8 @@ import numpy as np
 from peclet.core.files import atomic_write, check_writable_path, write_text
 from peclet.core.validation import PecletArgumentError, check_choice
 
-__all__ = ["write_vti", "read_vti", "write_vtu", "slice_figure", "full_field"]
+__all__ = ["write_vti", "read_vti", "write_vtu", "slice_figure", "full_field", "curve_figure",
+           "curve_table"]
 
 
 def full_field(flow):
@@ -138,3 +139,78 @@ def slice_figure(path, flow, plane="xy", index=None, title=None):
     fig.colorbar(im, ax=ax, label="|u| (cells/step)", shrink=0.8)
     save_png(fig, path, dpi=110, bbox_inches="tight")
     return path
+
+
+def curve_figure(path, curve, title=None):
+    """The friction factor f = (dP/L) D^2 / (mu U) against Re (log-log) of a
+    :class:`~peclet.flow.curve.Curve`: the steady points, the Forchheimer fit, Ergun (Sauter
+    diameter) and, for spheres, Eisfeld & Schnitzlein (their wall terms in a column, else the
+    unconfined limit). Drawn on its own canvas (peclet.core.figures: the user's matplotlib
+    backend is not touched); written atomically."""
+    from peclet.core.figures import save_png, subplots
+
+    from .correlations import eisfeld_schnitzlein, ergun
+
+    check_writable_path("path", path)
+    ok = [p for p in curve.points if p.status == "steady"]
+    fig, ax = subplots(figsize=(6.0, 4.2))
+    lo = min([p.Re_target for p in curve.points] + [p.Re for p in ok])
+    hi = max([p.Re_target for p in curve.points] + [p.Re for p in ok])
+    re = np.geomspace(lo / 2.0, hi * 2.0, 200)
+    e = curve.eps
+    ax.plot(re, ergun(re, e, curve.d_sauter, 1.0)[0] / re, "-", color="0.4",
+            label=f"Ergun (150, 1.75), d = Sauter {curve.d_sauter:.3f} D")
+    if curve.spheres:
+        es = eisfeld_schnitzlein(re, e, curve.d_volume, curve.D_t, 1.0)[0] / re
+        wall = f"D_t/d_p = {curve.D_t / curve.d_volume:.2f}" if np.isfinite(curve.D_t) \
+            else "no wall"
+        ax.plot(re, es, "--", color="C2", label=f"Eisfeld & Schnitzlein ({wall})")
+    if curve.fit is not None:
+        f = curve.fit
+        ax.plot(re, f["A"] + f["B"] * re, ":", color="C1",
+                label=f"Forchheimer fit: k = {f['k_D2']:.4g} D^2, beta = {f['beta_D']:.3g}/D")
+    ax.plot([p.Re for p in ok], [p.f for p in ok], "o", color="C0",
+            label=f"lattice Boltzmann, D/{curve.resolution:.3g}")
+    bad = [p for p in curve.points if p.status != "steady"]
+    for p in bad:
+        ax.axvline(p.Re_target, color="C3", lw=0.6, alpha=0.5)
+    if bad:
+        ax.plot([], [], "-", color="C3", lw=0.6, label="not steady / not run (target Re)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("Re = rho U D / mu")
+    ax.set_ylabel("f = (dP/L) D^2 / (mu U)")
+    ax.set_title(title or f"pressure drop, eps = {e:.3f}", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_png(fig, path, dpi=110)
+    return path
+
+
+def curve_table(curve):
+    """The points of a :class:`~peclet.flow.curve.Curve` as a text table, the fit under it."""
+    head = ["Re target", "Re", "Re/(1-eps)", "f = dP/L D^2/(mu U)", "/ Ergun", "/ E&S",
+            "steps", "max|u|/c_s", "nu", "status"]
+    rows = []
+    for p in curve.points:
+        ok = p.status == "steady"
+        fmt = lambda v, f: (f.format(v) if ok else "-")
+        rows.append([f"{p.Re_target:.4g}", fmt(p.Re, "{:.4g}"), fmt(p.Re_mod, "{:.4g}"),
+                     fmt(p.f, "{:.5g}"), fmt(p.dpdl / p.ergun, "{:.3f}"),
+                     fmt(p.dpdl / p.es, "{:.3f}") if np.isfinite(p.es) else "-",
+                     str(p.iterations), f"{p.mach:.3f}" if np.isfinite(p.mach) else "-",
+                     f"{p.nu:.3g}" if np.isfinite(p.nu) else "-",
+                     p.status + ("" if ok else f": {p.reason}")])
+    w = [max(len(r[i]) for r in [head] + rows) for i in range(len(head) - 1)]
+    line = lambda r: "  ".join([c.rjust(w[i]) for i, c in enumerate(r[:-1])] + [r[-1]])
+    out = [line(head), "  ".join("-" * x for x in w) + "  ------"] + [line(r) for r in rows]
+    f = curve.fit
+    if f is not None:
+        se = (lambda v: "n/a with 2 points") if f["points"] < 3 else (lambda v: f"{v:.2g}")
+        out.append(f"Forchheimer fit dP/L = (mu/k) U + beta rho U^2 over {f['points']} steady "
+                   f"points: k = {f['k_D2']:.5g} D^2 (+- {se(f['k_se'])}), beta = "
+                   f"{f['beta_D']:.4g} / D (+- {se(f['beta_se'])}), rms relative residual "
+                   f"{f['rms_rel']:.2e}")
+    else:
+        out.append("Forchheimer fit: fewer than 2 steady points")
+    return "\n".join(out)

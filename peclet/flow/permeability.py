@@ -19,6 +19,12 @@ The flow needs a periodic y as well; ``y_mode`` says how:
   planes (x, z) is barely affected (2%);
 - ``"open"``: not periodic and no walls: refused (fluid would leave the box).
 
+**Grown beds** (``peclet pack --protocol grow``, :mod:`peclet.flow.packs`) are triply
+periodic (:class:`~peclet.flow.domain.PeriodicCell`): the lattice is one whole period, there is
+no window and no seam, and the body force is the exact dP/L along x, y or z. The set-up shared
+with the pressure-drop curve (pack, container, lattice, geometry, porosity, diameters; the
+superficial velocity and dP/L of a solve) is :mod:`peclet.flow.setup`.
+
 **Column sections** (a pack made in a ``column:N`` container, :func:`pack_container`): the
 lattice covers the column's cross-section and is not periodic across it: the column's wall,
 taken from the same :class:`~peclet.packing.bed.containers.Container` the pack used (its side wall
@@ -107,43 +113,25 @@ the cut links, each link given to the element whose phi is lowest at the wall po
 """
 from __future__ import annotations
 
+import itertools
 import math
-import os
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from peclet.core.validation import PecletArgumentError, check_choice, check_float
+from peclet.core.validation import PecletArgumentError, check_float
 
+from .correlations import ES_SPHERES, eisfeld_schnitzlein  # noqa: F401
 from .domain import (BASE_BYTES, BYTES_PER_CELL, Y_MODES, check_lattice_memory,  # noqa: F401
                      column_window, lattice_dims, pack_domain, wrap_y)
-from .geometry import build_geometry
 from .lattice import C, MAGIC_DEFAULT, W
+from .setup import (_AXIS, ThinWallWarning, _check_column_holds, drive,  # noqa: F401
+                    pack_container, prepare, seam_fit, superficial, thinnest_wall)
 from .solver import solve
 
 __all__ = ["PackFlow", "pack_domain", "lattice_dims", "check_lattice_memory", "pack_container", "permeability", "richardson",
            "thinnest_wall", "ThinWallWarning", "Y_MODES", "eisfeld_schnitzlein", "seam_fit",
            "ES_SPHERES"]
-
-#: Eisfeld & Schnitzlein (2001), spheres: (K1, k1, k2) of their wall-corrected Ergun equation.
-ES_SPHERES = (154.0, 1.15, 0.87)
-
-_AXIS = {"x": 0, "y": 1, "z": 2}
-#: Leaf kinds whose thinnest dimension is read from the tree (param -> thickness).
-_THICKNESS = {
-    "sphere": lambda p: 2.0 * p[0],
-    "box": lambda p: 2.0 * min(p[0], p[1], p[2]),
-    "hollow_cylinder": lambda p: p[2],
-    "hollow_cylinder_shell": lambda p: p[0] - p[1],
-    "capsule": lambda p: 2.0 * p[0],
-    "torus": lambda p: 2.0 * p[1],
-}
-
-
-class ThinWallWarning(UserWarning):
-    """The resolution puts fewer than 4 cells across the thinnest wall of the element."""
-
 
 @dataclass
 class PackFlow:
@@ -202,139 +190,6 @@ class PackFlow:
                 "memory_MiB": f.memory_bytes / 2.0 ** 20, **self.info}
 
 
-def thinnest_wall(pack):
-    """(thickness in D, description) of the thinnest leaf of the element's tree (leaf scale
-    applied; only leaf kinds with a clear thickness are read), or (inf, "") if none."""
-    from peclet.core.geom.leaves import LEAVES_BY_KIND
-    b = pack.builder()
-    best, name = math.inf, ""
-    for idx in range(b.num_nodes()):
-        kind_id, _, _, params, _, _, scale = b.node(idx)
-        spec = LEAVES_BY_KIND.get(int(kind_id))
-        if spec is None or spec.name not in _THICKNESS:
-            continue
-        t = _THICKNESS[spec.name](list(params)) * float(scale)
-        if t < best:
-            best, name = t, f"node {idx} ({spec.name}, thickness {t:.4g} D)"
-    return best, name
-
-
-def pack_container(pack, container=None):
-    """(container, source): the container a pack was made in, for the flow.
-
-    ``container``: None (default: read from the ``results.json`` that ``peclet pack`` writes
-    beside its ``pack.npz``, when ``pack`` is a path and that file names the pack's container;
-    else the periodic box), "box" (the pack's periodic box), a spec "column:N" (N element
-    diameters, as ``peclet pack --container``), a :class:`~peclet.packing.bed.containers.Container`
-    or the spec dict of ``results.json``. Returns (a column Container bound to the element's
-    diameter, or None for the periodic box; a phrase saying where it came from). Only boxes
-    and columns are accepted (PecletArgumentError naming ``container``); a column must hold the
-    pack: its analysis period is the pack's box and every element centre is inside it.
-    """
-    from peclet.packing.bed.containers import Container, parse_container
-    from peclet.packing.bed.freeze import Pack
-    source = "argument"
-    d = 1.0
-    if container is None:
-        container, source = "box", "default (periodic box)"
-        if not isinstance(pack, Pack):
-            side = os.path.join(os.path.dirname(os.path.abspath(os.fspath(pack))),
-                                "results.json")
-            if os.path.isfile(side):
-                import json
-                try:
-                    with open(side) as fh:
-                        doc = json.load(fh)
-                    spec = doc["spec"]["container"]
-                    if isinstance(spec, (dict, str)):
-                        d = float(doc.get("analysis", {}).get("d_elem", 1.0))
-                        container, source = spec, f"{side} (spec.container)"
-                except (ValueError, KeyError, TypeError, OSError):
-                    pass
-    if isinstance(container, str) and container.strip() == "box":
-        return None, source
-    cont = parse_container(container)
-    if cont.kind == "box":
-        return None, source
-    if cont.kind != "column":
-        raise PecletArgumentError("container", "box or column:N (peclet.flow runs periodic "
-                                  "boxes and column sections)", cont.label())
-    if not isinstance(container, Container):
-        cont = cont.bound(d)
-    pk = pack if isinstance(pack, Pack) else None
-    if pk is not None:
-        _check_column_holds(pk, cont)
-    return cont, source
-
-
-def _check_column_holds(pk, cont):
-    Lx, Lz = cont.period
-    if not np.allclose(pk.box, (Lx, Lz), rtol=1e-9, atol=1e-12):
-        raise PecletArgumentError("container", f"the column the pack was made in (its period, "
-                                  f"{Lx:g} x {Lz:g}, is the pack's box)", cont.label(),
-                                  f"the pack's box is {pk.box[0]:g} x {pk.box[1]:g}")
-    cx, cz = cont.center_xz
-    r = np.hypot(pk.positions[:, 0] - cx, pk.positions[:, 2] - cz)
-    if np.any(r >= cont.radius):
-        raise PecletArgumentError("container", "a column holding every element centre",
-                                  cont.label(), f"a centre {r.max():.4g} from the axis, radius "
-                                  f"{cont.radius:g}")
-
-
-def seam_fit(flow, info, margin):
-    """The fluid-averaged pressure of each lattice plane normal to y (p = rho c_s^2, lattice
-    units), fitted by a line over the planes more than ``margin`` (D) from the wrapped
-    window's seam (y0 = y1). Returns {"slope" (pressure per cell), "slope_se" (its standard
-    error), "planes" (used), "planes_total"}; slope NaN with fewer than 4 planes."""
-    geo = flow.geometry
-    ny = geo.grid.dims[1]
-    h = geo.grid.h
-    j = geo.ijk[:, 1]
-    cnt = np.bincount(j, minlength=ny).astype(np.float64)
-    p = np.bincount(j, weights=flow.rho, minlength=ny) / np.maximum(cnt, 1.0) / 3.0
-    js = np.arange(ny)
-    dist = h * np.minimum(js + 0.5, ny - 0.5 - js)
-    use = (dist >= margin) & (cnt > 0)
-    out = {"planes": int(use.sum()), "planes_total": int(ny), "slope": math.nan,
-           "slope_se": math.nan}
-    if use.sum() < 4:
-        return out
-    x = js[use].astype(np.float64)
-    y = p[use]
-    A = np.column_stack([np.ones_like(x), x - x.mean()])
-    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-    res = y - A @ coef
-    se = math.sqrt(float(res @ res) / (len(x) - 2) / float(((x - x.mean()) ** 2).sum()))
-    out.update(slope=float(coef[1]), slope_se=se)
-    return out
-
-
-def _seam_shares(flow, info, margin, g):
-    """The seam's share of the drive fitted beyond 0.5, 1 and 1.5 times ``margin`` (those
-    with at least 4 planes): {margin in D: share}. Its spread shows how far the plane
-    pressure wanders from a line (pore-scale structure) beyond what the fit's standard error
-    says."""
-    out = {}
-    for m in (0.5 * margin, margin, 1.5 * margin):
-        f = seam_fit(flow, info, m)
-        if math.isfinite(f["slope"]):
-            out[f"{m:g}"] = f["slope"] / g
-    return out
-
-
-def eisfeld_schnitzlein(U, eps, d_p, D_t, mu, rho=1.0, constants=ES_SPHERES):
-    """dP/L of Eisfeld & Schnitzlein's (2001) wall-corrected Ergun equation (module
-    docstring) at superficial velocity U for voidage eps, particle diameter d_p, column
-    diameter D_t, viscosity mu and density rho (any consistent units). Returns
-    (dP/L, A_w, B_w)."""
-    K1, k1, k2 = constants
-    A_w = 1.0 + 2.0 / (3.0 * (D_t / d_p) * (1.0 - eps))
-    B_w = (k1 * (d_p / D_t) ** 2 + k2) ** 2
-    visc = K1 * A_w ** 2 * (1.0 - eps) ** 2 / eps ** 3 * mu * U / d_p ** 2
-    inert = A_w / B_w * (1.0 - eps) / eps ** 3 * rho * U * U / d_p
-    return visc + inert, A_w, B_w
-
-
 def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1.0 / 6.0,
                  magic=MAGIC_DEFAULT, scheme="linear", tol=1e-6, max_steps=100_000, Re=0.01,
                  progress=None, samples=8, area_n=160, mass="local", container=None,
@@ -352,49 +207,11 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
     :func:`peclet.flow.solver.solve`. Other arguments: see :func:`pack_domain` and
     :func:`peclet.flow.solver.solve`. Returns a :class:`PackFlow`.
     """
-    from peclet.packing.bed.freeze import Pack, load_pack
-    pk = pack if isinstance(pack, Pack) else load_pack(pack)
-    ax = _AXIS[check_choice("axis", axis, tuple(_AXIS))]
     Re = check_float("Re", Re, 0.0, 10.0, lo_open=True)
     seam_margin = check_float("seam_margin", seam_margin, 0.0)
-    cont, source = pack_container(pack, container)
-    if cont is not None:
-        _check_column_holds(pk, cont)
-        if axis != "y":
-            raise PecletArgumentError("axis", "y (a column section: the flow runs along the "
-                                      "column's axis; its wall closes x and z)", axis)
-    check_lattice_memory(pk, resolution, window, y_mode, cont)   # before any work
-    grid, phi, info = pack_domain(pk, resolution, window, y_mode, cont)
-    info["container_source"] = source
-    t_wall, wall_name = thinnest_wall(pk)
-    res = float(resolution)
-    if t_wall * res < 4.0:
-        msg = (f"the thinnest wall, {wall_name}, spans {t_wall * res:.2f} cells at D/{res:g} "
-               "(fewer than 4): link-crossing tests keep it solid, but the flow next to it is "
-               f"under-resolved; D/{math.ceil(4.0 / t_wall)} puts 4 cells across it")
-        warnings.warn(msg, ThinWallWarning, stacklevel=2)
-        info["thin_wall_warning"] = msg
-    geo = build_geometry(grid, phi, samples=samples,
-                         seams=(False, info["y_mode"] == "wrap", False))
-    nx, ny, nz = grid.dims
-    if cont is not None:
-        # the column's own cross-section: its area exactly, its nodes for the porosity
-        R_lu = float(cont.radius) / grid.h
-        area_lu = math.pi * R_lu * R_lu
-        lat = np.arange(nx) - 0.5 * (nx - 1)
-        r2 = lat[:, None] ** 2 + lat[None, :] ** 2
-        inside_nodes = int(np.count_nonzero(r2 < R_lu * R_lu)) * ny
-        eps = geo.n_fluid / inside_nodes
-        core = r2 < (R_lu - res) ** 2
-        core_cells = np.zeros(nx * nz, bool)
-        core_cells[(core.T).reshape(-1)] = True      # flat index x + nx z (square lattice)
-        fl = geo.ijk[:, 0] + nx * geo.ijk[:, 2]
-        n_core = int(core.sum()) * ny
-        eps_core = float(np.count_nonzero(core_cells[fl]) / n_core) if n_core else math.nan
-    else:
-        area_lu = float(nx * nz)
-        eps = geo.porosity
-    d_s, d_env = _diameters(pk, area_n)
+    st = prepare(pack, resolution, axis, window, y_mode, container, samples, area_n)
+    pk, grid, geo, info, ax, res = st.pack, st.grid, st.geo, st.info, st.ax, st.res
+    cont, eps, d_s, d_env = st.column, st.eps, st.d_s, st.d_env
     # the force from a Carman-Kozeny guess of k, so the run sits near the requested Re
     k_guess = max(eps ** 3 * d_s ** 2 / (180.0 * max(1.0 - eps, 1e-3) ** 2), 1e-6) * res ** 2
     U_target = Re * nu / res
@@ -403,37 +220,13 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
     F[ax] = g
     fr = solve(geo, F, nu=nu, magic=magic, scheme=scheme, tol=tol, max_steps=max_steps,
                progress=progress, mass=mass, balance_tol=balance_tol)
-    # superficial velocity: the flux through a lattice plane over the cross-section
-    U = float(fr.U[ax]) * (grid.n_cells / grid.dims[ax]) / (area_lu if ax == 1 else
-                                                             grid.n_cells / grid.dims[ax])
+    U = superficial(st, fr)
     if not U > 0.0:
         raise FloatingPointError(f"no flow along {axis}: U = {U}")
     k_period = nu * U / g
-    drive = g
-    seam = None
-    if info["y_mode"] == "wrap" and ax == 1:
-        seam = seam_fit(fr, info, seam_margin)
-        info.update({"seam_margin_D": seam_margin, "seam_planes": seam["planes"],
-                     "seam_share": seam["slope"] / g,
-                     "seam_share_se": seam["slope_se"] / g,
-                     "k_D2_seam_free": nu * U / (g - seam["slope"]) / res ** 2,
-                     "seam_share_by_margin": _seam_shares(fr, info, seam_margin, g)})
-        if cont is not None and math.isfinite(seam["slope"]):
-            drive = g - seam["slope"]
-            info["dpdl_source"] = "body force minus the pressure slope away from the seam"
-        elif cont is not None:
-            info["dpdl_source"] = (f"body force (whole period, seam included: fewer than 4 "
-                                   f"lattice planes lie {seam_margin:g} D or more from the "
-                                   "seam)")
-        else:
-            info["dpdl_source"] = ("body force (whole period of the wrapped window, seam "
-                                   "included; k_D2_seam_free beside it)")
-    elif info["y_mode"] == "wrap":
-        info["dpdl_source"] = ("body force (exact: the structure is periodic along the flow; "
-                               "the seam lies along it)")
-    else:
-        info["dpdl_source"] = "body force (exact for the mirrored period)"
-    k_lu = nu * U / drive
+    dpdl, up = drive(st, fr, g, U, nu, seam_margin)
+    info.update(up)
+    k_lu = nu * U / dpdl
     k_D2 = k_lu / res ** 2
     drag, inside, wall_drag = _element_drag(pk, fr, grid, ax, info, cont)
     total = float(fr.link_force[:, ax].sum())
@@ -448,7 +241,7 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
     info.update({"eps_envelope": eps_env, "axis": axis, "nu": nu, "magic": magic,
                  "scheme": scheme, "force": g, "k_D2_period": k_period / res ** 2,
                  "dpdl_lattice_period": g,
-                 "thinnest_wall_D": t_wall, "thinnest_wall": wall_name,
+                 "thinnest_wall_D": st.t_wall, "thinnest_wall": st.wall_name,
                  "elements_inside": int(inside.sum()), "U_lattice": U})
     if cont is not None:
         d_v = (6.0 * float(pk.ring_volume) / math.pi) ** (1.0 / 3.0)
@@ -456,12 +249,12 @@ def permeability(pack, resolution=16, axis="y", window=None, y_mode="wrap", nu=1
         es, A_w, B_w = eisfeld_schnitzlein(U, eps, d_v * res, D_t * res, nu) if solid \
             else (math.nan, math.nan, math.nan)
         info.update({"D_t_over_d_p": D_t / d_v, "d_p_volume": d_v, "A_w": A_w, "B_w": B_w,
-                     "ergun_wall_ratio": drive / es,
+                     "ergun_wall_ratio": dpdl / es,
                      "ergun_ratio_volume": ergun(d_v, eps),
                      "wall_drag_share": wall_drag / total if total else math.nan,
-                     "eps_core": eps_core, "porosity_nodes": "fluid nodes / nodes inside the "
+                     "eps_core": st.eps_core, "porosity_nodes": "fluid nodes / nodes inside the "
                      "wall (near-wall region included)"})
-    return PackFlow(resolution=res, k_D2=k_D2, k_lattice=k_lu, dpdl_lattice=drive,
+    return PackFlow(resolution=res, k_D2=k_D2, k_lattice=k_lu, dpdl_lattice=dpdl,
                     Re=U * res / nu, eps=eps, d_sauter=d_s, d_envelope=d_env, kozeny=kozeny,
                     ergun_ratio_sauter=ergun(d_s, eps),
                     ergun_ratio_envelope=ergun(d_env, eps_env) if np.isfinite(d_env)
@@ -488,18 +281,6 @@ def _envelope_voidage(pk, window, cont, n=200_000, seed=0):
     return 1.0 - float(np.mean(PackGeometry(pk).cover(pts)[1]))
 
 
-def _diameters(pack, n):
-    """(Sauter diameter 6 V / A, envelope volume-equivalent diameter) in D; A from the
-    element's surface mesh (:func:`peclet.core.geom.mesh.surface_mesh`, O(h^2))."""
-    from peclet.core.geom.mesh import surface_mesh
-    r = float(pack.bounding_radius) * 1.02
-    _, _, area = surface_mesh(pack.builder(), pack.home_root, [-r] * 3, [r] * 3, n)
-    d_s = 6.0 * float(pack.ring_volume) / float(area)
-    d_env = (6.0 * pack.envelope_volume / math.pi) ** (1.0 / 3.0) \
-        if np.isfinite(pack.envelope_volume) else math.nan
-    return d_s, d_env
-
-
 def _element_drag(pack, fr, grid, ax, info, cont=None):
     """Drag along ``ax`` on each element: each cut link's momentum goes to the body whose
     field is lowest at the link's wall point (mapped back into the window): an element, or
@@ -521,19 +302,17 @@ def _element_drag(pack, fr, grid, ax, info, cont=None):
         owner[:] = -2
     rb = float(pack.bounding_radius) + 2.0 * grid.h
     shifts = (-1, 0, 1) if cont is None else (0,)
-    for e in range(pack.n):
-        c0 = pack.positions[e]
-        for sx in shifts:
-            for sz in shifts:
-                c = c0 + np.array([sx * Lx, 0.0, sz * Lz])
-                d = pts - c
-                near = np.flatnonzero((d * d).sum(1) <= rb * rb)
-                if len(near) == 0:
-                    continue
-                v = b.eval_root(pack.home_root, d[near] @ R[e])
-                better = v < best[near]
-                best[near[better]] = v[better]
-                owner[near[better]] = e
+    yshifts = (-1, 0, 1) if info["container"] == "periodic" else (0,)
+    for e, sx, sy, sz in itertools.product(range(pack.n), shifts, yshifts, shifts):
+        c = pack.positions[e] + np.array([sx * Lx, sy * H, sz * Lz])
+        d = pts - c
+        near = np.flatnonzero((d * d).sum(1) <= rb * rb)
+        if len(near) == 0:
+            continue
+        v = b.eval_root(pack.home_root, d[near] @ R[e])
+        better = v < best[near]
+        best[near[better]] = v[better]
+        owner[near[better]] = e
     drag = np.zeros(pack.n)
     # the momentum exchange less its part at rest (rho0 = 1): -c_i (f*_o + f_i - 2 w_i). The
     # uniform pressure's force on a body vanishes only over a closed wetted surface; where

@@ -333,7 +333,8 @@ class FlowResult:
     node updates per second / 1e6), link_force (K, 3) momentum given to the wall per step by
     each cut link, fallback_links, mass ("local" or "global" correction), memory_bytes (the
     stepping arrays: two population buffers, the pull table, the wall-rule table and the
-    geometry's per-node and per-link arrays).
+    geometry's per-node and per-link arrays), stopped (the reason a ``stop`` callable gave to
+    end the run early, else "").
     """
 
     geometry: LatticeGeometry
@@ -359,6 +360,7 @@ class FlowResult:
     balance_tol: float = math.nan
     tol: float = math.nan
     parity_swing: float = math.nan
+    stopped: str = ""
 
     @property
     def mass_drift(self) -> float:
@@ -371,7 +373,7 @@ MASS_MODES = ("local", "global")
 
 def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme="linear",
           tol=1e-6, max_steps=200_000, check_every=None, progress=None, min_steps=None,
-          mass="local", balance_tol=None):
+          mass="local", balance_tol=None, init=None, stop=None):
     """Drive the fluid of ``geo`` by a uniform body force to a steady state.
 
     force: (3,) body force per unit volume in lattice units (= rho0 g, rho0 = 1; a pressure
@@ -382,7 +384,12 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
     20 and 500). progress: an object with ``update(n)`` (e.g. peclet.packing.bed.progress.Progress)
     or None. mass: "local" (default) or "global" mass correction of the wall rule (see the
     module docstring). balance_tol: the force balance's tolerance |B - 1| (default 1e-4;
-    see the module docstring; 1 switches it off). Returns a :class:`FlowResult`.
+    see the module docstring; 1 switches it off). init: None (start at rest, rho = 1) or
+    (rho (N,), u (N, 3)) of the fluid nodes (e.g. an earlier run's ``rho``, ``u``): the run
+    starts from the incompressible equilibrium of that state. stop: None or a callable given
+    the history (list of (step, U, balance)) at every check, returning "" to go on or a
+    reason to end the run (``converged`` False, ``stopped`` the reason). Returns a
+    :class:`FlowResult`.
     """
     if not isinstance(geo, LatticeGeometry):
         raise PecletArgumentError("geo", "a peclet.flow.geometry.LatticeGeometry", geo)
@@ -408,6 +415,10 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
     nm = np.zeros(len(lc))
     fa = np.empty((Q, n))
     fa[:] = W[:, None]
+    if init is not None:
+        fa[:] = _equilibrium(check_array("init[0]", init[0], (n,)),
+                             check_array("init[1]", init[1], (n, 3)))
+    stopped = ""
     fb = np.empty_like(fa)
     nblk = (n + BLOCK - 1) // BLOCK
     sums = np.zeros((nblk, 4))
@@ -471,6 +482,9 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
                     break
                 prev_r = r
             prev_U = Uf
+            stopped = stop(hist) if stop is not None else ""
+            if stopped:
+                break
     # the outputs: means over the last two steps (a period-2 mode cancels; module docstring)
     outs = []
     for last in (False, True):
@@ -501,7 +515,14 @@ def solve(geo: LatticeGeometry, force, nu=1.0 / 6.0, magic=MAGIC_DEFAULT, scheme
                       seconds=seconds, mlups=n * steps / max(seconds, 1e-12) / 1e6,
                       link_force=lf, fallback_links=fallback, history=hist, U_nodes=U_nodes,
                       mass=mass, memory_bytes=mem, balance=bal, balance_tol=balance_tol,
-                      tol=tol, parity_swing=swing)
+                      tol=tol, parity_swing=swing, stopped=stopped)
+
+
+def _equilibrium(rho, u):
+    """(19, N) incompressible equilibria w_i (rho + 3 c.u + 9/2 (c.u)^2 - 3/2 u.u)."""
+    cu = u @ C.T.astype(np.float64)                       # (N, 19)
+    uu = (u * u).sum(axis=1)
+    return (W[None, :] * (rho[:, None] + 3.0 * cu + 4.5 * cu * cu - 1.5 * uu[:, None])).T
 
 
 def _ordered_sum(a):
