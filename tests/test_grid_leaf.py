@@ -218,3 +218,16 @@ def test_grid_sphere_particles_collide_like_their_analytic_twins():
     assert abs(grid.volume / exact.volume - 1.0) < 0.01          # the interpolant at R/10
     e_grid, e_exact = rebound(grid), rebound(exact)
     assert 0.4 < e_grid < 0.55 and abs(e_grid - e_exact) < 0.05, (e_grid, e_exact)
+
+
+def test_container_from_a_vessel_mesh(tmp_path):
+    from peclet.packing.bed.containers import parse_container
+    path = tmp_path / "vessel.stl"
+    trimesh.creation.cylinder(radius=60.0, height=200.0).export(path)      # mm: 12 x 40 D
+    c = parse_container(f"{path}:scale=0.1,resolution=0.25")
+    assert c.kind == "tree"
+    b = geom.SceneBuilder.decode(c.tree[0], c.tree[1])
+    phi = b.eval_root(c.tree[2], [[0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [7.0, 0.0, 0.0]])
+    assert phi[0] < -5.5 and phi[1] < 0 < phi[2]
+    with pytest.raises(PecletArgumentError, match="container"):
+        parse_container(f"{tmp_path / 'none.stl'}")

@@ -29,11 +29,14 @@ import numpy as np
 from peclet.core import geom
 from peclet.core.validation import PecletArgumentError, check_float
 
+from .user_shapes import is_user_file, mesh_container_tree
+
 __all__ = ["Container", "parse_container", "CONTAINER_FORMS", "MIN_WIDTH", "MAX_WIDTH",
            "MAX_DROP"]
 
-CONTAINER_FORMS = "'box:L', 'column:N', 'walled:Lx,Lz' (in element diameters), a Container " \
-                  "or a (builder, root) fluid-region tree"
+CONTAINER_FORMS = "'box:L', 'column:N', 'walled:Lx,Lz' (in element diameters), a Container, " \
+                  "a (builder, root) fluid-region tree or a closed mesh file of the fluid " \
+                  "region (vessel.stl[:scale=S,resolution=H])"
 
 #: The narrowest column diameter / box side accepted, in element diameters.
 MIN_WIDTH = 1.5
@@ -383,6 +386,8 @@ def parse_container(value):
             raise PecletArgumentError("container", CONTAINER_FORMS, value) from None
     if isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], geom.SceneBuilder):
         return Container.from_tree(*value)
+    if is_user_file(value):
+        return Container.from_tree(*mesh_container_tree(value))
     if not isinstance(value, str) or ":" not in value:
         raise PecletArgumentError("container", CONTAINER_FORMS, value)
     kind, _, args = value.partition(":")

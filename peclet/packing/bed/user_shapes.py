@@ -22,12 +22,16 @@ from peclet.core import geom
 from peclet.core.geom import grids
 from peclet.core.validation import PecletArgumentError
 
-__all__ = ["MESH_SUFFIXES", "EXTENT_RANGE", "is_user_file", "user_file_element"]
+__all__ = ["MESH_SUFFIXES", "EXTENT_RANGE", "CONTAINER_SPACING", "is_user_file",
+           "user_file_element", "mesh_container_tree"]
 
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
 #: Accepted largest extent of a user's element (pack units, the library's elements ~1).
 EXTENT_RANGE = (0.05, 20.0)
 _OPTIONS = {"scale": (0.0, math.inf), "resolution": (0.0, math.inf)}
+#: Default grid spacing of a container from a mesh (element diameters): walls are touched
+#: by elements of size 1, so their field is sampled at a tenth of that.
+CONTAINER_SPACING = 0.1
 
 
 def _split(value):
@@ -41,6 +45,28 @@ def is_user_file(value):
         return False
     path, _ = _split(os.fspath(value))
     return path.lower().endswith(MESH_SUFFIXES)
+
+
+def mesh_container_tree(value):
+    """(builder, root) of a container from a mesh file ``vessel.stl[:scale=S,resolution=H]``:
+    the mesh's interior is the fluid region (element diameters after ``scale``), sampled at
+    ``resolution`` (default :data:`CONTAINER_SPACING`). PecletArgumentError naming
+    "container"."""
+    path, text = _split(os.fspath(value))
+    try:
+        opts = _options(value, text)
+        if not os.path.isfile(path):
+            raise PecletArgumentError("element", "a path to an existing mesh file", path)
+        v, f = grids.load_mesh(path)
+        b = geom.SceneBuilder()
+        root = grids.grid_from_mesh(b, (v, f), spacing=opts.get("resolution",
+                                                                 CONTAINER_SPACING),
+                                    scale=opts.get("scale", 1.0))
+    except PecletArgumentError as e:
+        raise PecletArgumentError("container", "a closed mesh file whose interior is the "
+                                  "fluid region, MESH[:scale=S,resolution=H]", value,
+                                  str(e)) from None
+    return b, root
 
 
 def _options(value, text):
