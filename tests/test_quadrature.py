@@ -193,7 +193,8 @@ def test_near_tangent_line_finds_its_run_past_the_halving_cap():
     r = b.add_leaf("hollow_cylinder", t["params"], translation=t["translation"],
                    rotation=t["rotation"], scale=t["scale"])
     prog = b.program(r)
-    P = (prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end)
+    # the program tuple's last entry is 1 / L, the tree's Lipschitz constant (1 here)
+    P = (prog.ops, prog.leaf_kind, prog.leaf_reals, prog.op_begin, prog.op_end, 1.0)
     st = np.empty((K.MAX_STACK, K.STACK_COLS))
     z_low = t["translation"][2] - t["params"][0] * t["scale"]
     axis = quat_to_matrix(np.array(t["rotation"]) / np.linalg.norm(t["rotation"]))[:, 1]

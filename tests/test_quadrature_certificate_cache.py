@@ -42,9 +42,9 @@ def test_shared_levels_are_bitwise_the_separate_ones(monkeypatch):
     counted = {"n": 0}
     integrate = refine.integrate_cells
 
-    def counting(*args):
+    def counting(*args, **kw):
         counted["n"] += len(args[5])
-        return integrate(*args)
+        return integrate(*args, **kw)
     monkeypatch.setattr(refine, "integrate_cells", counting)
     refined = False
     for recipe in FIXED:
@@ -99,8 +99,8 @@ def test_planted_cell_bias_fails_both_paths(monkeypatch):
     from peclet.core.geom.quadrature import refine
     integrate = refine.integrate_cells
 
-    def biased(*args):
-        mom, err, code = integrate(*args)
+    def biased(*args, **kw):
+        mom, err, code = integrate(*args, **kw)
         mom[:, 0] *= 1.0 + 1e-3
         return mom, err, code
     monkeypatch.setattr(refine, "integrate_cells", biased)

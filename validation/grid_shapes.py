@@ -13,8 +13,8 @@ A unit sphere as a grid leaf made two ways, at each spacing h:
 
 Measured: *distance*, the largest |phi - (|p| - 1)| over 20 000 points of the shell
 0.75 < |p| < 1.25 (relative to the radius); *normal*, the largest |n - p/|p|| of the unit
-gradient there; *volume*, the implicit quadrature of the grid solid (tol 1e-6, n = the
-lattice's cells) against 4/3 pi (and, for the mesh, against the mesh's own divergence-theorem
+gradient there; *volume*, the implicit quadrature of the grid solid (tol 1e-6, one top cell per
+lattice cell: :func:`grids.quadrature_layout`) against 4/3 pi (and, for the mesh, against the mesh's own divergence-theorem
 volume); *area*, the marching-cubes area of the grid's zero set at twice the lattice
 resolution against 4 pi. Observed orders from successive spacings: log(e1 / e2) / log(h1 / h2).
 Prints our figure beside Yade's tolerance; ``--json`` writes every number.
@@ -66,12 +66,13 @@ def measure(source, h, stl_path):
     phi, grad = b.eval_root_grad(g, p)
     r = np.linalg.norm(p, axis=1)
     n = grad / np.linalg.norm(grad, axis=1)[:, None]
+    from peclet.core.geom.grids import quadrature_layout
+    lo, hi, nq = quadrature_layout(b, g)        # one top quadrature cell per lattice cell
     dims = b.node(g)[3][1:4].astype(int)
-    half = 0.5 * (dims - 1) * h
     t0 = time.perf_counter()
-    props = b.body_properties(g, -half, half, n=int(dims.max() - 1), tol=1e-6)
+    props = b.body_properties(g, lo, hi, n=nq, tol=1e-6)
     t_quad = time.perf_counter() - t0
-    _, _, area = geom.surface_mesh(b, g, -half, half, int(2 * dims.max() - 1))
+    _, _, area = geom.surface_mesh(b, g, lo, hi, int(2 * dims.max() - 1))
     row = dict(source=source, spacing=h, samples=int(np.prod(dims)),
                distance=float(np.abs(phi - (r - 1.0)).max()),
                normal=float(np.linalg.norm(n - p / r[:, None], axis=1).max()),

@@ -22,6 +22,11 @@ Resolution: ``spacing`` (a length) or, for a mesh, from its thinnest part: ``2 V
 over area) is the thickness of a plate and 2/3 of a sphere's radius, and the default spacing is
 a sixth of it (a 0.12 D ring wall gets about 12 cells across; a sphere 27 across its
 diameter). A margin of two cells is added around the bounds, so the faces' samples are outside.
+The lattice is a cube (the longest side's samples on every axis), so that the quadrature's top
+cells can be the lattice's own cells (:func:`quadrature_layout`): inside one lattice cell the
+field is one trilinear polynomial, with no crease for the break search to locate. Measured on
+a sampled unit sphere at h = 0.2: 3.0 s and a volume error estimate of 2e-14 aligned, against
+15-24 s and 8e-8 with 4 lattice cells in each top cell (a loaded two-core machine).
 """
 from __future__ import annotations
 
@@ -38,7 +43,7 @@ from .leaves import GRID_DIM_RANGE
 from .sampled import lattice_points
 
 __all__ = ["grid_from_callable", "grid_from_mesh", "grid_from_npz", "save_grid", "load_mesh",
-           "mesh_mass_properties", "MeshMassProperties", "MARGIN_CELLS"]
+           "mesh_mass_properties", "MeshMassProperties", "MARGIN_CELLS", "quadrature_layout"]
 
 #: Cells of margin added on every side of the bounds.
 MARGIN_CELLS = 2
@@ -63,7 +68,8 @@ def _lattice(lo, hi, spacing):
         raise PecletArgumentError("hi", f"greater than lo = {lo.tolist()} on every axis",
                                   hi.tolist())
     h = check_float("spacing", spacing, 0.0, math.inf, lo_open=True)
-    dims = np.ceil((hi - lo) / h).astype(np.int64) + 1 + 2 * MARGIN_CELLS
+    # a cube of samples: the quadrature's top cells can then be the lattice's cells
+    dims = np.full(3, int(np.ceil(float((hi - lo).max()) / h)) + 1 + 2 * MARGIN_CELLS)
     lo_n, hi_n = GRID_DIM_RANGE
     if np.any(dims > hi_n):
         raise PecletArgumentError("spacing", f"a spacing giving at most {hi_n} samples per "
@@ -105,6 +111,24 @@ def _add(builder, values, h, centre, source):
         raise PecletArgumentError(source, "a field whose solid lies inside the bounds (samples "
                                   "> 0 on the lattice's faces) and is not empty",
                                   f"{values.shape} samples", str(e)) from None
+
+
+def quadrature_layout(builder, root):
+    """``(lo (3,), hi (3,), n)`` for :func:`peclet.core.geom.body_properties` that puts one
+    top-level quadrature cell on each lattice cell of ``root``, when ``root`` is a grid leaf
+    with a cubic lattice and no rotation (what the makers here build); None otherwise. The box
+    is the lattice's (in ``root``'s parent frame) and ``n = V_PROBES (N - 1)``, so
+    ``ceil(n / V_PROBES)`` top cells per axis are exactly the lattice's N - 1."""
+    from .leaves import GRID
+    from .quadrature.constants import V_PROBES
+    kind, _, _, params, t, q, s = builder.node(root)
+    if kind != GRID:
+        return None
+    dims = params[1:4].astype(int)
+    if not (dims[0] == dims[1] == dims[2]) or not np.array_equal(q, [0.0, 0.0, 0.0, 1.0]):
+        return None
+    half = 0.5 * (dims[0] - 1) * float(params[4]) * s
+    return t - half, t + half, int(V_PROBES * (dims[0] - 1))
 
 
 def load_mesh(mesh):

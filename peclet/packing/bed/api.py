@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from peclet.core import geom
+from peclet.core.geom import grids
 from peclet.core.machine import check_memory, physical_memory
 from peclet.core.validation import PecletArgumentError, check_bool, check_int
 
@@ -201,6 +202,9 @@ def _user_element(b, root, name):
     if not (np.isfinite(r) and r > 0):
         raise PecletArgumentError("element", "a bounded solid", name, f"bounding radius {r}")
     c = np.asarray(c, float)
+    aligned = grids.quadrature_layout(b, root)
+    if aligned is not None:            # a grid leaf: measure it cell by lattice cell
+        return Element(b, root, name, {}, aligned[:2], quadrature_n=aligned[2])
     return Element(b, root, name, {}, (c - 1.1 * r, c + 1.1 * r))
 
 
@@ -234,6 +238,8 @@ def element_model(el: Element, build=None):
     from .elements import home_transform
 
     kw = dict(BUILD, **(build or {}))
+    if el.quadrature_n is not None and "n" not in (build or {}):
+        kw["n"] = el.quadrature_n
     ni, nr, _, _ = el.builder.encode()
     key = (el.name, int(el.root), ni.tobytes(), nr.tobytes(), tuple(sorted(kw.items())))
     if key in _MODELS:

@@ -68,6 +68,9 @@ class Element:
     envelope_volume: float | None = None
     min_feature: float = math.nan
     axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+    #: the quadrature's n that aligns its cells with a grid leaf's lattice (bounds then the
+    #: lattice's box; :func:`peclet.core.geom.grids.quadrature_layout`), else None
+    quadrature_n: int | None = None
 
     def __iter__(self):
         yield self.builder
