@@ -2,6 +2,8 @@
 
 References are independent of the kernel: SciPy's RegularGridInterpolator for the trilinear
 interpolant, closed forms for the spheres, trimesh for the mesh's volume."""
+import functools
+
 import numpy as np
 import pytest
 import trimesh
@@ -179,13 +181,11 @@ def test_pack_element_from_a_saved_grid(tmp_path):
     assert abs(el.builder.eval_root(el.root, [[0.0, 0.0, 0.0]])[0] + 0.5) < 1e-12
 
 
-@pytest.mark.heavy
-def test_grid_sphere_particles_collide_like_their_analytic_twins():
-    """Two grid spheres (r 0.5, h 0.05 = R/10) head-on in the impulse engine rebound like two
-    analytic sphere leaves built the same way (the shell probes and the quadrature run on the
-    grid; e = 0.5 asked). Measured: 0.459 against 0.486 at R/10; at R/4 (h 0.125) 0.345, the
-    interpolant's normals ~10 deg off the radius turning the impulse sideways."""
-    from peclet.dem import Simulation, scene_particle
+@functools.lru_cache(maxsize=1)
+def _sphere_twins():
+    """(grid sphere particle, analytic sphere particle): r 0.5, the grid at h 0.05 = R/10, both
+    measured and shelled by scene_particle.build the same way."""
+    from peclet.dem import scene_particle
 
     def particle(grid):
         b = geom.SceneBuilder()
@@ -196,28 +196,58 @@ def test_grid_sphere_particles_collide_like_their_analytic_twins():
             r = b.add_leaf("sphere", [0.5])
         return scene_particle.build(b, r, bounds=([-0.8] * 3, [0.8] * 3), n=16, tol=1e-6,
                                     target_shell_points=400, shell_resolution=40)
+    return particle(True), particle(False)
 
-    def rebound(sp):
-        sim = Simulation(2)
-        sim.set_gravity(0.0, 0.0, 0.0)
-        sim.set_material_params(0.5, 0.0, 0.0)
-        sid = sp.register(sim)
-        sim.set_positions(np.array([[-0.6, 0.0, 0.0], [0.6, 0.0, 0.0]]))
-        sim.set_shape_ids(np.array([sid, sid], np.int32))
-        sim.set_quaternions(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)))
-        sim.set_inv_mass(np.full(2, 1.0 / sp.mass))
-        sim.set_inv_inertia(np.tile(1.0 / sp.principal, (2, 1)))
-        sim.set_velocities(np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]))
+
+def _rebound(sp, hertz=False):
+    """Head-on rebound (separation over approach speed) of two copies of ``sp``, e = 0.5."""
+    from peclet.dem import Simulation
+    sim = Simulation(2)
+    sim.set_gravity(0.0, 0.0, 0.0)
+    sim.set_material_params(0.5, 0.0, 0.0)
+    sid = sp.register(sim)
+    gap = 0.502 if hertz else 0.6
+    sim.set_positions(np.array([[-gap, 0.0, 0.0], [gap, 0.0, 0.0]]))
+    sim.set_shape_ids(np.array([sid, sid], np.int32))
+    sim.set_quaternions(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)))
+    sim.set_inv_mass(np.full(2, 1.0 / sp.mass))
+    sim.set_inv_inertia(np.tile(1.0 / sp.principal, (2, 1)))
+    sim.set_velocities(np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]))
+    if hertz:                   # E 1e7, density 1: contact time ~1.5e-3, 1e-5 steps
+        sim.set_hertz_material(0, 1e7, 0.3)
+        sim.set_contact_law("hertz")
+        sim.set_dt(1e-5)
+        sim.advance(2000)
+    else:
         sim.set_dt(1e-3)
         for _ in range(300):
             sim.step()
-        v = sim.get_velocities()
-        return (v[1, 0] - v[0, 0]) / 2.0
+    v = sim.get_velocities()
+    return (v[1, 0] - v[0, 0]) / 2.0
 
-    grid, exact = particle(True), particle(False)
+
+@pytest.mark.heavy
+def test_grid_sphere_particles_collide_like_their_analytic_twins():
+    """Impulse engine: two grid spheres (r 0.5, h 0.05 = R/10) head-on rebound like two
+    analytic sphere leaves built the same way (e = 0.5 asked). Measured: 0.459 against 0.486
+    at R/10; at R/4 (h 0.125) 0.345, the interpolant's normals ~10 deg off the radius turning
+    the impulse sideways."""
+    grid, exact = _sphere_twins()
     assert abs(grid.volume / exact.volume - 1.0) < 0.01          # the interpolant at R/10
-    e_grid, e_exact = rebound(grid), rebound(exact)
+    e_grid, e_exact = _rebound(grid), _rebound(exact)
     assert 0.4 < e_grid < 0.55 and abs(e_grid - e_exact) < 0.05, (e_grid, e_exact)
+
+
+@pytest.mark.heavy
+@pytest.mark.xfail(strict=True, reason="Hertz engine with a grid leaf: measured rebound 0.387 "
+                   "against 0.49996 for the analytic twin (e = 0.5 asked). Suspected cause: "
+                   "R* comes from the surfaces' curvatures, which for a trilinear interpolant "
+                   "jump from cell to cell, so the force law changes during the contact and "
+                   "is not conservative; not yet fixed (issue 41)")
+def test_grid_sphere_particles_rebound_in_the_hertz_engine():
+    grid, exact = _sphere_twins()
+    h_grid, h_exact = _rebound(grid, hertz=True), _rebound(exact, hertz=True)
+    assert abs(h_exact - 0.5) < 0.02 and abs(h_grid - h_exact) < 0.05, (h_grid, h_exact)
 
 
 def test_container_from_a_vessel_mesh(tmp_path):

@@ -11,10 +11,12 @@ A unit sphere as a grid leaf made two ways, at each spacing h:
   through an STL file and sampled by libigl with the winding-number sign
   (:func:`grids.grid_from_mesh`).
 
-Measured: *distance*, the largest |phi - (|p| - 1)| over 20 000 points of the shell
-0.75 < |p| < 1.25 (relative to the radius); *normal*, the largest |n - p/|p|| of the unit
+Measured: *distance*, the largest |phi - (|p| - 1)| over the points of 20 000 in the shell
+0.75 < |p| < 1.25 that lie inside the lattice (relative to the radius; outside it the field is
+the stated extension, not the interpolant); *normal*, the largest |n - p/|p|| of the unit
 gradient there; *volume*, the implicit quadrature of the grid solid (tol 1e-6, one top cell per
-lattice cell: :func:`grids.quadrature_layout`) against 4/3 pi (and, for the mesh, against the mesh's own divergence-theorem
+lattice cell, or of 2^3 when that would pass the cell budget: :func:`grids.quadrature_layout`)
+against 4/3 pi (and, for the mesh, against the mesh's own divergence-theorem
 volume); *area*, the marching-cubes area of the grid's zero set at twice the lattice
 resolution against 4 pi. Observed orders from successive spacings: log(e1 / e2) / log(h1 / h2).
 Prints our figure beside Yade's tolerance; ``--json`` writes every number.
@@ -62,13 +64,15 @@ def measure(source, h, stl_path):
     t0 = time.perf_counter()
     g = sphere_leaf(b, source, h, stl_path)
     t_build = time.perf_counter() - t0
+    from peclet.core.geom.grids import quadrature_layout
+    lo, hi, nq = quadrature_layout(b, g)        # top quadrature cells of whole lattice cells
+    dims = b.node(g)[3][1:4].astype(int)
+    half = 0.5 * (dims[0] - 1) * h
     p = _shell_points()
+    p = p[np.all(np.abs(p) <= half, axis=1)]    # inside the lattice (the interpolant's errors)
     phi, grad = b.eval_root_grad(g, p)
     r = np.linalg.norm(p, axis=1)
     n = grad / np.linalg.norm(grad, axis=1)[:, None]
-    from peclet.core.geom.grids import quadrature_layout
-    lo, hi, nq = quadrature_layout(b, g)        # one top quadrature cell per lattice cell
-    dims = b.node(g)[3][1:4].astype(int)
     t0 = time.perf_counter()
     props = b.body_properties(g, lo, hi, n=nq, tol=1e-6)
     t_quad = time.perf_counter() - t0

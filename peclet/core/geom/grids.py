@@ -47,6 +47,9 @@ __all__ = ["grid_from_callable", "grid_from_mesh", "grid_from_npz", "save_grid",
 
 #: Cells of margin added on every side of the bounds.
 MARGIN_CELLS = 2
+#: Top quadrature cells a side at most in :func:`quadrature_layout` (30^3 = 27,000 of the
+#: quadrature's 50,000-cell budget, the rest left for refinement).
+TOP_CELLS_A_SIDE = 30
 #: The default spacing is the mesh's thickness 2 V / A over this.
 CELLS_PER_THICKNESS = 6.0
 
@@ -114,11 +117,14 @@ def _add(builder, values, h, centre, source):
 
 
 def quadrature_layout(builder, root):
-    """``(lo (3,), hi (3,), n)`` for :func:`peclet.core.geom.body_properties` that puts one
-    top-level quadrature cell on each lattice cell of ``root``, when ``root`` is a grid leaf
-    with a cubic lattice and no rotation (what the makers here build); None otherwise. The box
-    is the lattice's (in ``root``'s parent frame) and ``n = V_PROBES (N - 1)``, so
-    ``ceil(n / V_PROBES)`` top cells per axis are exactly the lattice's N - 1."""
+    """``(lo (3,), hi (3,), n)`` for :func:`peclet.core.geom.body_properties` whose top-level
+    quadrature cells are made of whole lattice cells of ``root`` (k^3 each, k the smallest that
+    keeps at most :data:`TOP_CELLS_A_SIDE` top cells a side, within the quadrature's budget of
+    cells with room to refine),
+    when ``root`` is a grid leaf with a cubic lattice and no rotation (what the makers here
+    build); None otherwise. The box starts at the lattice's first sample (``root``'s parent
+    frame) and spans a whole number of top cells; ``n = V_PROBES * top cells``, so
+    ``ceil(n / V_PROBES)`` top cells per axis fall on lattice planes."""
     from .leaves import GRID
     from .quadrature.constants import V_PROBES
     kind, _, _, params, t, q, s = builder.node(root)
@@ -127,8 +133,12 @@ def quadrature_layout(builder, root):
     dims = params[1:4].astype(int)
     if not (dims[0] == dims[1] == dims[2]) or not np.array_equal(q, [0.0, 0.0, 0.0, 1.0]):
         return None
-    half = 0.5 * (dims[0] - 1) * float(params[4]) * s
-    return t - half, t + half, int(V_PROBES * (dims[0] - 1))
+    cells = int(dims[0]) - 1
+    k = -(-cells // TOP_CELLS_A_SIDE)
+    top = -(-cells // k)
+    h = float(params[4]) * s
+    lo = t - 0.5 * cells * h
+    return lo, lo + top * k * h, int(V_PROBES * top)
 
 
 def load_mesh(mesh):
