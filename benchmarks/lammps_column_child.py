@@ -21,24 +21,13 @@ the stepping, sphere-steps, settled flag, version) from rank 0, and OUT.rank<r>.
 in kB) from every rank.
 """
 import json
-import resource
 import sys
 import time
 
 import numpy as np
 
-
-def peak_rss_kb():
-    """This process's peak resident set (kB): VmHWM of /proc/self/status (ru_maxrss, the
-    fallback off Linux, keeps the forking parent's peak across exec)."""
-    try:
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1])
-    except OSError:
-        pass
-    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+# the benchmark's stdlib + numpy helpers, beside this file (on sys.path as the script's folder)
+from _vs_lammps import peak_rss_kb
 
 
 def commands(p):
