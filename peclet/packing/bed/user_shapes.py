@@ -23,7 +23,7 @@ from peclet.core.geom import grids
 from peclet.core.validation import PecletArgumentError
 
 __all__ = ["MESH_SUFFIXES", "EXTENT_RANGE", "CONTAINER_SPACING", "is_user_file",
-           "user_file_element", "mesh_container_tree"]
+           "user_file_element", "mesh_container_tree", "grid_npz_element", "is_grid_npz"]
 
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
 #: Accepted largest extent of a user's element (pack units, the library's elements ~1).
@@ -40,11 +40,35 @@ def _split(value):
 
 
 def is_user_file(value):
-    """True for a string naming a mesh file (with or without options) or a grid .npz."""
+    """True for a string or path naming a mesh file (.stl, .obj, .ply; options or not)."""
     if not isinstance(value, (str, os.PathLike)):
         return False
     path, _ = _split(os.fspath(value))
     return path.lower().endswith(MESH_SUFFIXES)
+
+
+def _mesh_leaf(value, spacing, extent_range=None):
+    """(builder, grid leaf, path) of ``MESH[:scale=S,resolution=H]``: the mesh's coordinates
+    times S sampled at H (default ``spacing``, None: the mesh's own default); with
+    ``extent_range``, a largest extent outside it is refused with the scale that fixes it.
+    PecletArgumentError naming "element"."""
+    path, text = _split(os.fspath(value))
+    opts = _options(value, text)
+    if not os.path.isfile(path):
+        raise PecletArgumentError("element", "a path to an existing mesh file", path)
+    v, f = grids.load_mesh(path)
+    scale = opts.get("scale", 1.0)
+    if extent_range is not None:
+        extent = float((v.max(axis=0) - v.min(axis=0)).max()) * scale
+        lo, hi = extent_range
+        if not lo <= extent <= hi:
+            raise PecletArgumentError(
+                "element", f"a mesh whose largest extent (times scale) is in [{lo:g}, {hi:g}] "
+                "element units", value, f"extent {extent:.4g}: a file in other units? try "
+                f"{path}:scale={scale / extent:.4g}")
+    b = geom.SceneBuilder()
+    root = grids.grid_from_mesh(b, (v, f), spacing=opts.get("resolution", spacing), scale=scale)
+    return b, root, path
 
 
 def mesh_container_tree(value):
@@ -52,16 +76,8 @@ def mesh_container_tree(value):
     the mesh's interior is the fluid region (element diameters after ``scale``), sampled at
     ``resolution`` (default :data:`CONTAINER_SPACING`). PecletArgumentError naming
     "container"."""
-    path, text = _split(os.fspath(value))
     try:
-        opts = _options(value, text)
-        if not os.path.isfile(path):
-            raise PecletArgumentError("element", "a path to an existing mesh file", path)
-        v, f = grids.load_mesh(path)
-        b = geom.SceneBuilder()
-        root = grids.grid_from_mesh(b, (v, f), spacing=opts.get("resolution",
-                                                                 CONTAINER_SPACING),
-                                    scale=opts.get("scale", 1.0))
+        b, root, _ = _mesh_leaf(value, CONTAINER_SPACING)
     except PecletArgumentError as e:
         raise PecletArgumentError("container", "a closed mesh file whose interior is the "
                                   "fluid region, MESH[:scale=S,resolution=H]", value,
@@ -89,23 +105,9 @@ def _options(value, text):
 
 
 def user_file_element(value, make_element):
-    """(builder, root, name) of a mesh file's grid leaf (module notes); ``make_element``
-    is called as ``make_element(builder, root, name)`` and its result returned."""
-    path, text = _split(os.fspath(value))
-    opts = _options(value, text)
-    if not os.path.isfile(path):
-        raise PecletArgumentError("element", "a path to an existing mesh file", path)
-    v, f = grids.load_mesh(path)
-    scale = opts.get("scale", 1.0)
-    extent = float((v.max(axis=0) - v.min(axis=0)).max()) * scale
-    lo, hi = EXTENT_RANGE
-    if not lo <= extent <= hi:
-        raise PecletArgumentError(
-            "element", f"a mesh whose largest extent (times scale) is in [{lo:g}, {hi:g}] "
-            "element units", value, f"extent {extent:.4g}: a file in other units? try "
-            f"{path}:scale={scale / extent:.4g}")
-    b = geom.SceneBuilder()
-    root = grids.grid_from_mesh(b, (v, f), spacing=opts.get("resolution"), scale=scale)
+    """A mesh file's grid leaf as an element (module notes): ``make_element(builder, root,
+    name)`` is called and its result returned."""
+    b, root, path = _mesh_leaf(value, None, EXTENT_RANGE)
     return make_element(b, root, os.path.basename(path))
 
 
