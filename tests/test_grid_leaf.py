@@ -311,3 +311,11 @@ def test_a_simulation_with_a_grid_shape_and_wall_saves_and_resumes_bitwise(tmp_p
         for _ in range(50):
             s.step()
     assert sim.state_hash() == again.state_hash()
+
+
+def test_a_refused_grid_leaves_the_builder_as_it_was():
+    values, _ = sphere_values(n=9, h=0.35)
+    b = geom.SceneBuilder()
+    with pytest.raises(PecletArgumentError, match="scale"):
+        b.add_grid(values, 0.35, scale=-1.0)
+    assert b.num_nodes() == 0

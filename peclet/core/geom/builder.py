@@ -115,6 +115,7 @@ class SceneBuilder:
         neither exact nor 1-Lipschitz, so it is never certified (its ball is measured, §4).
         For meshes, callables and saved grids see :mod:`peclet.core.geom.grids`."""
         v, h = check_grid_values(values, spacing)
+        translation, rotation, scale = as_transform(translation, rotation, scale)  # before rows
         first = len(self._ints)
         for row in data_rows(v):
             self._append_data(row)

@@ -39,7 +39,8 @@ import numpy as np
 from peclet.core.files import atomic_write
 from peclet.core.validation import PecletArgumentError, check_array, check_float
 
-from .leaves import GRID_DIM_RANGE
+from .leaves import GRID, GRID_DIM_RANGE
+from .quadrature.constants import V_PROBES
 from .sampled import lattice_points
 
 __all__ = ["grid_from_callable", "grid_from_mesh", "grid_from_npz", "save_grid", "load_mesh",
@@ -125,8 +126,6 @@ def quadrature_layout(builder, root):
     build); None otherwise. The box starts at the lattice's first sample (``root``'s parent
     frame) and spans a whole number of top cells; ``n = V_PROBES * top cells``, so
     ``ceil(n / V_PROBES)`` top cells per axis fall on lattice planes."""
-    from .leaves import GRID
-    from .quadrature.constants import V_PROBES
     kind, _, _, params, t, q, s = builder.node(root)
     if kind != GRID:
         return None
