@@ -76,7 +76,8 @@ def test_peclet_warm_compiles_every_part_and_says_so():
     assert "Hertz substep and coloured solve" in done.stdout
     assert "cached now: True" in done.stdout
     # on disk (the index jitcache.is_cached reads; not this process's own compilations)
-    for kernel in (hertz.forces_serial, hertz.rolling_serial, solver.solve_velocities_colored):
+    for kernel in (hertz.forces_loops.serial, hertz.rolling_loops.serial,
+                   solver.solve_velocities_colored):
         assert len(kernel._cache._cache_file._load_index()) > 0, kernel
 
 

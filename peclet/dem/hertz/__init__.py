@@ -108,10 +108,10 @@ from .calibration import (E_MIN, RATIO_LIMIT, RAYLEIGH_FRACTION, damping_gamma, 
                           damping_gamma_linear, edem_gamma, elliptic_table, rayleigh_time,
                           rebound_speed, restitution_of)
 from .law import (ContactRows, ForceOut, Motion, PairLaw, Walls, accumulate,  # noqa: E402,F401
-                  contact_forces, contact_geometry, forces_parallel, forces_serial,
+                  contact_forces, contact_geometry, forces_loops,
                   kick_drift, walls_of)
 from .rolling import (MU_R_MAX, ROLLING_DAMPING, RollLaw, RollOut, Spin,  # noqa: E402,F401
-                      accumulate_torques, rolling_parallel, rolling_serial, rolling_torques)
+                      accumulate_torques, rolling_loops, rolling_torques)
 from .fields import Pair, Shapes, Side, shapes_of  # noqa: E402,F401
 from .patch import (DELTA_LIMIT, FAILED_FEATURE, FD_STEP, MAX_PATCHES, PATCH_DEEP,  # noqa: E402,F401
                     PATCH_LINE, PATCH_MAX_ITER, PATCH_NO_CONVERGENCE, PATCH_NOT_CONVEX,

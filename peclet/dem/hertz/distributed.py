@@ -65,7 +65,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from . import dispatch
 from .fields import field, pair_of, shapes_of
@@ -214,16 +214,7 @@ def _dist_one(i, rows, sh, N, zooms, nbis, res):
                           out[i])
 
 
-@njit(cache=True)
-def dist_serial(rows, sh, N, zooms, nbis, res):
-    for i in range(rows.a.shape[0]):
-        _dist_one(i, rows, sh, N, zooms, nbis, res)
-
-
-@njit(cache=True, parallel=True)
-def dist_parallel(rows, sh, N, zooms, nbis, res):
-    for i in prange(rows.a.shape[0]):
-        _dist_one(np.int64(i), rows, sh, N, zooms, nbis, res)
+dist_loops = dispatch.row_loops(_dist_one)
 
 
 def distributed_geometry(a, b, shift, pos, rot, shape_of, geo, estar, touched=None):
@@ -240,7 +231,7 @@ def distributed_geometry(a, b, shift, pos, rot, shape_of, geo, estar, touched=No
     rows = DistRows(np.asarray(a, np.int64), np.asarray(b, np.int64),
                     np.ascontiguousarray(shift), np.ascontiguousarray(estar, dtype=np.float64),
                     touched)
-    dispatch.run(dist_serial, dist_parallel, n, "DIST_PARALLEL_MIN", rows,
+    dispatch.run(dist_loops, n, "DIST_PARALLEL_MIN", rows,
                  shapes_of(pos, rot, shape_of, geo), np.int64(DIST_GRID), np.int64(DIST_ZOOMS),
                  np.int64(DIST_BISECT), DistOut(out, status))
     return out, status

@@ -11,7 +11,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from peclet.core.geom.kernels import MAX_STACK, STACK_COLS, eval_point
 from peclet.dem.treeframe import to_home, world_normal
@@ -98,10 +98,22 @@ def into_plane(hx, hy, hz, nx, ny, nz):
 
 
 @njit(cache=True)
+def truncate(x, y, z, limit):
+    """(x, y, z, cut): the vector shortened to length ``limit`` (direction kept) where it is
+    longer, and whether it was; the Coulomb cone of a force, the plastic limit of a torque."""
+    n = math.sqrt(x * x + y * y + z * z)
+    if n > limit:
+        s = limit / n
+        return x * s, y * s, z * s, True
+    return x, y, z, False
+
+
+@njit(cache=True)
 def contact_velocity(i, rows, motion):
-    """(v_n, t_x, t_y, t_z) of contact i: the normal component (positive when separating) and
-    the tangential part of the velocity of a's surface point relative to b's (or to the
-    wall's surface, ``motion.vwall[i]``), world frame. Shared by every force law."""
+    """(n_x, n_y, n_z, v_n, t_x, t_y, t_z) of contact i: its unit normal (from b to a), the
+    normal component of the velocity of a's surface point relative to b's (or to the wall's
+    surface, ``motion.vwall[i]``; positive when separating) and its tangential part, world
+    frame. Shared by every force law."""
     a, b, normal, _, ra, rb = rows
     vel, omega, vwall = motion
     ia = a[i]
@@ -123,7 +135,7 @@ def contact_velocity(i, rows, motion):
         vy -= vwall[i, 1]
         vz -= vwall[i, 2]
     vn = vx * nx + vy * ny + vz * nz
-    return vn, vx - vn * nx, vy - vn * ny, vz - vn * nz
+    return nx, ny, nz, vn, vx - vn * nx, vy - vn * ny, vz - vn * nz
 
 
 @njit(cache=True)
@@ -139,12 +151,8 @@ def tangential_spring(i, xi, nx, ny, nz, tx, ty, tz, dt, stiffness, damping, lim
     fx = -stiffness * hx - damping * tx
     fy = -stiffness * hy - damping * ty
     fz = -stiffness * hz - damping * tz
-    ft = math.sqrt(fx * fx + fy * fy + fz * fz)
-    if ft > limit:
-        s = limit / ft
-        fx *= s
-        fy *= s
-        fz *= s
+    fx, fy, fz, cut = truncate(fx, fy, fz, limit)
+    if cut:
         if stiffness > 0.0:
             hx = -fx / stiffness
             hy = -fy / stiffness
@@ -175,14 +183,12 @@ def store_row(i, out, fn, nx, ny, nz, fx, fy, fz):
 @njit(cache=True)
 def _one_contact(i, rows, law, motion, dt, out):
     # contact i of contact_forces; writes only row i
-    normal, gap = rows.normal, rows.gap
     estar, gstar, rstar, mstar, gamma, mu = law
-    d = -gap[i]
+    d = -rows.gap[i]
     if d <= 0.0:
         clear_row(i, out)
         return
-    nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-    vn, tx, ty, tz = contact_velocity(i, rows, motion)
+    nx, ny, nz, vn, tx, ty, tz = contact_velocity(i, rows, motion)
     sq = math.sqrt(rstar[i] * d)
     sn = 2.0 * estar[i] * sq
     st = 8.0 * gstar[i] * sq
@@ -194,16 +200,7 @@ def _one_contact(i, rows, law, motion, dt, out):
     store_row(i, out, fn, nx, ny, nz, fx, fy, fz)
 
 
-@njit(cache=True)
-def forces_serial(rows, law, motion, dt, out):
-    for i in range(rows.a.shape[0]):
-        _one_contact(i, rows, law, motion, dt, out)
-
-
-@njit(cache=True, parallel=True)
-def forces_parallel(rows, law, motion, dt, out):
-    for i in prange(rows.a.shape[0]):
-        _one_contact(np.int64(i), rows, law, motion, dt, out)
+forces_loops = dispatch.row_loops(_one_contact)
 
 
 def contact_forces(rows, law, motion, dt, out):
@@ -214,7 +211,7 @@ def contact_forces(rows, law, motion, dt, out):
     points from b to a; a gap < 0 is an overlap; a wall (b < 0) moves with ``motion.vwall[i]``;
     per-contact E*, G*, R*, m*, gamma, mu in ``law`` (:class:`PairLaw`). Serial below the
     package setting ``PARALLEL_MIN`` contacts (:mod:`peclet.dem.hertz.dispatch`)."""
-    dispatch.run(forces_serial, forces_parallel, len(rows.a), "PARALLEL_MIN", rows, law,
+    dispatch.run(forces_loops, len(rows.a), "PARALLEL_MIN", rows, law,
                  motion, dt, out)
 
 
@@ -269,23 +266,14 @@ def _kick_one(i, x, v, w, f_body, t_body, inv_mass, wii, g, dt):
         x[i, e] += dt * v[i, e]
 
 
-@njit(cache=True)
-def kick_serial(x, v, w, f_body, t_body, inv_mass, wii, g, dt):
-    for i in range(x.shape[0]):
-        _kick_one(i, x, v, w, f_body, t_body, inv_mass, wii, g, dt)
-
-
-@njit(cache=True, parallel=True)
-def kick_parallel(x, v, w, f_body, t_body, inv_mass, wii, g, dt):
-    for i in prange(x.shape[0]):
-        _kick_one(np.int64(i), x, v, w, f_body, t_body, inv_mass, wii, g, dt)
+kick_loops = dispatch.row_loops(_kick_one)
 
 
 def kick_drift(x, v, w, f_body, t_body, inv_mass, wii, g, dt):
     """v += dt (inv_mass F + g) (g only where inv_mass > 0), omega += dt I_w^-1 T with the
     world inverse inertia ``wii`` (N, 3, 3), x += dt v. Per body (own rows only; serial below
     the package setting ``PARALLEL_MIN`` bodies)."""
-    dispatch.run(kick_serial, kick_parallel, len(x), "PARALLEL_MIN", x, v, w, f_body, t_body,
+    dispatch.run(kick_loops, len(x), "PARALLEL_MIN", x, v, w, f_body, t_body,
                  inv_mass, wii, g, dt)
 
 

@@ -42,7 +42,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from peclet.core.validation import PecletArgumentError
 
@@ -323,16 +323,7 @@ def _patch_dedupe(first, a, b, shape_of, shape_rad, point, gap, status):
                     break
 
 
-@njit(cache=True)
-def patches_serial(rows, sh, out):
-    for i in range(rows.a.shape[0]):
-        _patch_one(i, rows, sh, out)
-
-
-@njit(cache=True, parallel=True)
-def patches_parallel(rows, sh, out):
-    for i in prange(rows.a.shape[0]):
-        _patch_one(np.int64(i), rows, sh, out)
+patches_loops = dispatch.row_loops(_patch_one)
 
 
 def patch_geometry(a, b, shift, mode, u, first, pos, rot, shape_of, geo):
@@ -351,7 +342,7 @@ def patch_geometry(a, b, shift, mode, u, first, pos, rot, shape_of, geo):
     radii2 = np.empty((n, 2))
     unew = np.empty((n, 3))
     status = np.empty(n, np.int64)
-    dispatch.run(patches_serial, patches_parallel, n, "PATCH_PARALLEL_MIN",
+    dispatch.run(patches_loops, n, "PATCH_PARALLEL_MIN",
                  PatchRows(a, b, shift, mode, u), shapes_of(pos, rot, shape_of, geo),
                  PatchOut(point, normal, gap, rstar, radii2, unew, status))
     _patch_dedupe(first, a, b, shape_of, geo.shape_rad, point, gap, status)

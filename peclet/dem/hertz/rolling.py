@@ -42,10 +42,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from . import dispatch
-from .law import add_opposite, into_plane
+from .law import add_opposite, into_plane, truncate
 
 
 class RollLaw(NamedTuple):
@@ -158,26 +158,12 @@ def _one_rolling(i, rows, law, spin, dt, out):
             ty -= cr * wy
             tz -= cr * wz
             # spring plus dashpot never beyond the plastic torque
-            t = math.sqrt(tx * tx + ty * ty + tz * tz)
-            if t > lim:
-                s = lim / t
-                tx *= s
-                ty *= s
-                tz *= s
+            tx, ty, tz, _ = truncate(tx, ty, tz, lim)
     mr[i, 0], mr[i, 1], mr[i, 2] = hx, hy, hz
     torque[i, 0], torque[i, 1], torque[i, 2] = tx, ty, tz
 
 
-@njit(cache=True)
-def rolling_serial(rows, law, spin, dt, out):
-    for i in range(rows.a.shape[0]):
-        _one_rolling(i, rows, law, spin, dt, out)
-
-
-@njit(cache=True, parallel=True)
-def rolling_parallel(rows, law, spin, dt, out):
-    for i in prange(rows.a.shape[0]):
-        _one_rolling(np.int64(i), rows, law, spin, dt, out)
+rolling_loops = dispatch.row_loops(_one_rolling)
 
 
 def rolling_torques(rows, law, spin, dt, out):
@@ -189,7 +175,7 @@ def rolling_torques(rows, law, spin, dt, out):
     rolling radius, the normal force of :func:`~peclet.dem.hertz.law.contact_forces` this
     step; ``spin`` (:class:`Spin`): a wall's angular velocity ``wom``, the bodies' mean
     principal inverse moment ``inv_rot`` (the dashpot's inertia)."""
-    dispatch.run(rolling_serial, rolling_parallel, len(rows.a), "PARALLEL_MIN", rows, law,
+    dispatch.run(rolling_loops, len(rows.a), "PARALLEL_MIN", rows, law,
                  spin, dt, out)
 
 
