@@ -221,19 +221,36 @@ def test_run_phases_from_a_stop_adds_the_same_numbers_as_the_uninterrupted_loop(
     phases = [Phase("a", 0.3, 5), Phase("b", 0.0, 0), Phase("c", 1.7, 4), Phase("d", 0.9, 3)]
     dt = 0.0123
 
-    def trace(start):
-        log, speed = [], [None]
-        run_phases(phases, dt, lambda: log.append(("step", speed[0])),
-                   lambda om: speed.__setitem__(0, om),
-                   lambda k, t, a, ph: log.append((k, t, a, ph.name)), start=start)
+    class World:                     # owns the clock, as a Simulation does
+        def __init__(self, time):
+            self.time = time
+
+        def step(self):
+            self.time += dt
+
+    times = {0: 0.5}                 # the world's time after step k (what a checkpoint saves)
+
+    def trace(start, time):
+        log, speed, world = [], [None], World(time)
+
+        def step():
+            world.step()
+            log.append(("step", speed[0]))
+            times.setdefault(sum(1 for e in log if e[0] == "step") + (start or (0,))[0],
+                             world.time)
+
+        run_phases(phases, dt, step, lambda om: speed.__setitem__(0, om),
+                   lambda: world.time - 0.5, lambda k, t, a, ph: log.append((k, t, a, ph.name)),
+                   start=start)
         return log
 
-    full = trace(None)
+    full = trace(None, 0.5)
+    assert full[1][1] == (0.5 + dt) - 0.5     # the world's time since the phases began
     for stop in range(0, 13):
-        k, t, a = full[2 * stop - 1][:3] if stop else (0, 0.0, 0.0)
-        # from any stop, the rest of the run: the same steps at the same speeds and the same
-        # clock and angle, bit for bit (floats compared with ==)
-        assert trace((k, t, a)) == full[2 * stop:], stop
+        k, a = full[2 * stop - 1][::2] if stop else (0, 0.0)
+        # from any stop (the world's clock restored), the rest of the run: the same steps at
+        # the same speeds and the same clock and angle, bit for bit (floats compared with ==)
+        assert trace((k, a), times[k]) == full[2 * stop:], stop
     assert full[-1][0] == 12
 
 

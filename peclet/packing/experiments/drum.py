@@ -102,7 +102,7 @@ from .drum_output import write_outputs
 from .drum_spec import (ENDS, RIB_HALF_WIDTH, RIB_HEIGHT, RIB_SPACING,  # noqa: F401 (API)
                         DrumSpec, froude_of_rpm, rpm_of_froude)
 from .series import (Phase, check_work, fresh_checkpoint, relocate, reopen,
-                     run_phases)
+                     run_phases, turning_clock)
 
 __all__ = ["DrumSpec", "Drum", "measure", "classify", "MELLMANN", "MIN_GRAINS", "G",
            "froude_of_rpm",
@@ -363,8 +363,8 @@ def run_drum(spec, out=None, progress=True, figures=True, threads=None, previous
     t0 = time.perf_counter()
     cdir, previous = fresh_checkpoint(out, previous, every, "drum")
     drum.build()
-    st = dict(k=0, t=0.0, angle=0.0, samples=[], frames=[], snaps=[], seconds=0.0,
-              run=ckpt.new_run(), checkpoint_every=every)
+    st = dict(k=0, t=0.0, t_begin=drum.sim.time, angle=0.0, samples=[], frames=[], snaps=[],
+              seconds=0.0, run=ckpt.new_run(), checkpoint_every=every)
     st["seconds"] = time.perf_counter() - t0
     if cdir is not None:
         _checkpoint_write(cdir, spec, drum, st)
@@ -456,8 +456,9 @@ def _turn(drum, st, out, progress, figures, previous, every, max_steps, cdir,
         bar.close()
         return dict(complete=False, steps_done=st["k"], checkpoint=cdir)
     try:
-        run_phases(sched, drum.dt, drum.step, drum.turn, observe, bar,
-                   start=(st["k"], st["t"], st["angle"]))
+        run_phases(sched, drum.dt, drum.step, drum.turn, turning_clock(sim, st), observe,
+                   bar,
+                   start=(st["k"], st["angle"]))
     except _Stop:
         bar.close()
         return dict(complete=False, steps_done=stop_at, checkpoint=cdir)
@@ -524,7 +525,7 @@ def _checkpoint_write(cdir, spec, drum, st):
     """Write step ``st["k"]`` of the run into ``cdir``
     (:func:`peclet.packing.bed.checkpoint.write_loop_step`): ``ckpt-<k>/`` holds ``sim.npz``,
     the loop's state ``state.json`` and the frames and radii ``arrays.npz``."""
-    state = dict(t=st["t"], angle=st["angle"], seconds=st["seconds"],
+    state = dict(t=st["t"], t_begin=st["t_begin"], angle=st["angle"], seconds=st["seconds"],
                  checkpoint_every=st.get("checkpoint_every"), wall=drum.wall,
                  settle_steps=drum.settle_steps, samples=st["samples"])
     arrays = dict(radii=np.asarray(drum.radii, np.float64),

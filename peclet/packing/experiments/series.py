@@ -20,8 +20,8 @@ import numpy as np
 from peclet.core.files import atomic_directory, atomic_write, remove_parts
 from peclet.core.validation import PecletArgumentError
 
-__all__ = ["Phase", "run_phases", "write_series", "grains_mesh", "check_work", "reopen",
-           "relocate", "Reopened", "fresh_checkpoint",
+__all__ = ["Phase", "run_phases", "turning_clock", "write_series", "grains_mesh", "check_work",
+           "reopen", "relocate", "Reopened", "fresh_checkpoint",
            "GRAIN_STEP_SECONDS", "MAX_RUN_SECONDS"]
 
 #: The cost of one grain through one step on one core, in seconds, used to estimate a run's
@@ -58,21 +58,22 @@ def check_work(phases, grains, name, value):
             f"{GRAIN_STEP_SECONDS:g} s a grain-step")
 
 
-def run_phases(phases, dt, step, turn, after_step=None, bar=None, start=None):
+def run_phases(phases, dt, step, turn, clock, after_step=None, bar=None, start=None):
     """Run ``phases`` (a list of :class:`Phase`): at the start of each, ``turn(omega)`` sets the
     wall's angular speed; then ``step()`` advances the simulation by ``dt``, and
-    ``after_step(k, t, angle, phase)`` sees the global step count k (from 1), the time t since
-    the first phase began, the angle turned (rad, the sum of omega dt) and the :class:`Phase`.
-    ``bar`` (a :class:`peclet.packing.bed.progress.Progress`) is advanced one step at a time.
+    ``after_step(k, t, angle, phase)`` sees the global step count k (from 1), the time
+    t = ``clock()`` since the first phase began (the world's clock, read after the step: the
+    simulation owns the time, this loop only reads it), the angle turned (rad, the sum of
+    omega dt) and the :class:`Phase`. ``bar`` (a :class:`peclet.packing.bed.progress.Progress`)
+    is advanced one step at a time.
 
-    ``start``: None (from the beginning) or the (k, t, angle) a run stopped at (read from a
+    ``start``: None (from the beginning) or the (k, angle) a run stopped at (read from a
     checkpoint): phases that ended by step k are skipped, ``turn`` is called for the phase
-    step k + 1 belongs to and every later one, and the clock and the angle go on from t and
-    angle, so the continued run adds the same numbers in the same order as the uninterrupted
-    one. (``turn`` must only set the speed, as a skipped phase's call is not repeated.)
-    Returns (steps, t, angle)."""
-    k, t, angle = (0, 0.0, 0.0) if start is None else (int(start[0]), float(start[1]),
-                                                          float(start[2]))
+    step k + 1 belongs to and every later one, and the angle goes on from ``angle``, so the
+    continued run adds the same numbers in the same order as the uninterrupted one. (``turn``
+    must only set the speed, as a skipped phase's call is not repeated.) Returns (steps, t,
+    angle)."""
+    k, angle = (0, 0.0) if start is None else (int(start[0]), float(start[1]))
     skip = k
     for ph in phases:
         if skip and skip >= ph.steps:        # wholly run before the stop
@@ -82,14 +83,25 @@ def run_phases(phases, dt, step, turn, after_step=None, bar=None, start=None):
         for _ in range(ph.steps - skip):
             step()
             k += 1
-            t += dt
             angle += ph.omega * dt
             if after_step is not None:
-                after_step(k, t, angle, ph)
+                after_step(k, clock(), angle, ph)
             if bar is not None:
                 bar.update(1, label=ph.name)
         skip = 0
-    return k, t, angle
+    return k, clock(), angle
+
+
+def turning_clock(sim, state):
+    """The clock :func:`run_phases` reads for a run whose state is ``state`` (a dict): the
+    simulation's time ``sim.time`` less ``state["t_begin"]``, the simulation's time when the
+    first phase began (recorded by the run when it starts, and in its checkpoints). A checkpoint
+    written before ``t_begin`` was recorded gets it as its simulation time less its turning
+    time ``state["t"]``, which is equal up to rounding."""
+    if "t_begin" not in state:
+        state["t_begin"] = sim.time - float(state["t"])
+    since = float(state["t_begin"])
+    return lambda: sim.time - since
 
 
 def write_series(out, stem, frames, mesh_of):

@@ -64,7 +64,7 @@ from peclet.core.validation import PecletArgumentError
 
 from ..bed import checkpoint as ckpt
 from .series import (Phase, check_work, fresh_checkpoint, grains_mesh, relocate, reopen,
-                     run_phases, write_series)
+                     run_phases, turning_clock, write_series)
 
 __all__ = ["StirSpec", "StirredColumn", "lacey", "run_stir", "resume_stir", "checkpoint_dir",
            "read_checkpoint", "same_spec", "OUTPUTS", "OUTPUT_DIRS", "PAGE_COUNT"]
@@ -311,8 +311,8 @@ def run_stir(spec, out=None, progress=True, figures=True, threads=None, previous
     t0 = time.perf_counter()
     cdir, previous = fresh_checkpoint(out, previous, every, "stir")
     col.build()
-    st = dict(k=0, t=0.0, angle=0.0, samples=[], frames=[], seconds=0.0, run=ckpt.new_run(),
-              checkpoint_every=every)
+    st = dict(k=0, t=0.0, t_begin=col.sim.time, angle=0.0, samples=[], frames=[], seconds=0.0,
+              run=ckpt.new_run(), checkpoint_every=every)
     if cdir is not None:
         st["seconds"] = time.perf_counter() - t0
         _checkpoint_write(cdir, col, st)
@@ -397,8 +397,9 @@ def _stir(col, st, out, progress, figures, previous, every, max_steps, cdir, kee
         bar.close()
         return dict(complete=False, steps_done=st["k"], checkpoint=cdir)
     try:
-        run_phases(sched, spec.dt, col.step, col.turn, observe, bar,
-                   start=(st["k"], st["t"], st["angle"]))
+        run_phases(sched, spec.dt, col.step, col.turn, turning_clock(sim, st), observe,
+                   bar,
+                   start=(st["k"], st["angle"]))
     except _Stop:
         bar.close()
         return dict(complete=False, steps_done=stop_at, checkpoint=cdir)
@@ -440,7 +441,7 @@ def checkpoint_dir(path, name="path"):
 
 
 def _checkpoint_write(cdir, col, st):
-    state = dict(t=st["t"], angle=st["angle"], seconds=st["seconds"],
+    state = dict(t=st["t"], t_begin=st["t_begin"], angle=st["angle"], seconds=st["seconds"],
                  checkpoint_every=st.get("checkpoint_every"), column_wall=col.column_wall,
                  impeller_wall=col.impeller_wall, samples=st["samples"],
                  bed_top=getattr(col, "bed_top", None))
