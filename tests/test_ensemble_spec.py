@@ -247,3 +247,38 @@ def test_cli_refuses_an_out_it_does_not_own(tmp_path, capsys, make):
     assert rc == 2 and err.startswith("peclet ensemble: error: --out") and "\n" not in err, err
     if before is not None:
         assert {n: os.path.getmtime(os.path.join(out, n)) for n in os.listdir(out)} == before
+
+
+# ---------------------------------------------------------------- elements from files
+def _mesh(path, radius=12.5):
+    import trimesh
+
+    trimesh.creation.icosphere(subdivisions=2, radius=radius).export(path)
+    return path
+
+
+def test_a_mesh_element_is_carried_by_its_absolute_path_and_contents(tmp_path, monkeypatch):
+    _mesh(tmp_path / "pellet.stl")
+    monkeypatch.chdir(tmp_path)
+    spec = PackSpec(element="pellet.stl:scale=0.04", container="column:4", count=4,
+                    protocol="rain")
+    assert spec.element == f"{tmp_path / 'pellet.stl'}:scale=0.04"
+    assert spec.element_params == {}
+    first = spec.id
+    assert PackSpec.from_dict(spec.as_dict()).id == first
+    _mesh(tmp_path / "pellet.stl", radius=12.0)          # the user edits the file
+    assert PackSpec.from_dict(spec.as_dict()).id != first
+    with pytest.raises(PecletArgumentError, match="scale=0.04,2|KEY in"):
+        PackSpec(element="pellet.stl:scale=0.04,2")
+    with pytest.raises(PecletArgumentError, match="^element must be a path"):
+        PackSpec(element="missing.stl")
+    with pytest.raises(PecletArgumentError, match="sweep must be KEY"):
+        parse_sweep(["thickness=0.03,0.06"], "sweep", element=spec.element)
+
+
+def test_cli_names_element_for_a_missing_mesh(tmp_path, capsys):
+    rc = main(["ensemble", "--element", str(tmp_path / "nope.stl"), "--seeds", "1-2",
+               "--out", str(tmp_path / "o"), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--element must be a path to an existing mesh" in err, err
+    assert not (tmp_path / "o").exists()

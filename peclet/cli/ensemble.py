@@ -75,9 +75,12 @@ def _specs(args):
     from peclet.ensemble.runner import machine_cores
     from peclet.ensemble.spec import check_field, make_specs, parse_seeds, parse_sweep
     from peclet.packing.bed.elements import element_text, parse_element
+    from peclet.packing.bed.user_shapes import file_element_text
 
     seeds = parse_seeds(args.seeds, "--seeds")
-    element = element_text(*parse_element(args.element, "--element"))
+    element = file_element_text(args.element, "--element")
+    if element is None:
+        element = element_text(*parse_element(args.element, "--element"))
     sweep = parse_sweep(args.sweep, "--sweep", element=element)
     fixed = {}
     for field, flag in _FIXED.items():

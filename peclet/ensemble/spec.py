@@ -113,9 +113,11 @@ class PackSpec(Spec):
         # the same cheap checks pack() makes, here so a bad spec fails before a cluster starts
         from peclet.packing.bed.containers import parse_container
         from peclet.packing.bed.elements import element_text, parse_element
+        from peclet.packing.bed.user_shapes import file_element_text
 
-        object.__setattr__(self, "element", element_text(*parse_element(self.element,
-                                                                        "element")))
+        text = file_element_text(self.element)
+        object.__setattr__(self, "element", text if text is not None
+                           else element_text(*parse_element(self.element, "element")))
         parse_container(self.container)
         check_choice("protocol", self.protocol, PROTOCOLS)
         if self.steps_scale != 1.0 and self.protocol != "page":
@@ -133,7 +135,12 @@ class PackSpec(Spec):
 
     def canonical(self):
         """Canonical JSON text (sorted keys, floats as their shortest round-trip repr)."""
-        return json.dumps(dict(self.as_dict(), format=FORMAT), sort_keys=True,
+        extra = {}
+        if is_file_element(self.element):
+            # an element from a file is its contents: an edited file is another realization
+            from peclet.packing.bed.user_shapes import file_digest
+            extra["element_sha256"] = file_digest(self.element)
+        return json.dumps(dict(self.as_dict(), format=FORMAT, **extra), sort_keys=True,
                           separators=(",", ":"))
 
     @property
@@ -187,18 +194,28 @@ def parse_seeds(text, name="seeds"):
     return sorted(seen)
 
 
+def is_file_element(element):
+    """True for an element text naming a file (a mesh or an .npz), not a library element."""
+    from peclet.packing.bed.user_shapes import is_user_file
+
+    return is_user_file(element) or element.endswith(".npz")
+
+
 def element_params(element):
     """The given construction parameters of an element text (``"pall_ring:thickness=0.024"``
-    -> ``{"thickness": 0.024}``; ``"pall_ring"`` -> ``{}``), checked."""
+    -> ``{"thickness": 0.024}``; ``"pall_ring"`` and a file element -> ``{}``), checked."""
     from peclet.packing.bed.elements import parse_element
 
-    return parse_element(element, "element")[1]
+    return {} if is_file_element(element) else parse_element(element, "element")[1]
 
 
 def sweepable_element_params(element="pall_ring"):
-    """Names of the element's numeric construction parameters (a sweep may vary them)."""
+    """Names of the element's numeric construction parameters (a sweep may vary them; none
+    for an element from a file)."""
     from peclet.packing.bed.elements import PARAMS, parse_element
 
+    if is_file_element(element):
+        return ()
     kind = parse_element(element, "element")[0]
     return tuple(p.name for p in PARAMS[kind] if p.kind != "triple")
 
@@ -299,7 +316,9 @@ def make_specs(seeds, sweep=None, **fixed):
     fixed = {k: v for k, v in fixed.items() if v is not None}
     names = {f.name for f in dataclasses.fields(PackSpec)}
     elem_keys = [k for k in sweep if k not in names]
-    kind, given = parse_element(fixed.get("element", PackSpec.element), "element")
+    element = fixed.get("element", PackSpec.element)
+    kind, given = (element, {}) if is_file_element(str(element)) \
+        else parse_element(element, "element")
     for k in elem_keys:   # what parse_sweep checks, again for a sweep built by hand
         if k not in sweepable_element_params(kind):
             raise PecletArgumentError("sweep", f"a spec field ({', '.join(SWEEPABLE)}) or a "

@@ -85,23 +85,57 @@ def mesh_container_tree(value):
     return b, root
 
 
-def _options(value, text):
+def _options(value, text, arg="element"):
     out = {}
     for tok in filter(None, (t.strip() for t in text.split(","))):
         k, eq, v = tok.partition("=")
         k = k.strip()
         if not eq or k not in _OPTIONS:
-            raise PecletArgumentError("element", f"MESH[:KEY=V,...] with KEY in "
+            raise PecletArgumentError(arg, f"MESH[:KEY=V,...] with KEY in "
                                       f"{sorted(_OPTIONS)}", value, f"bad item {tok!r}")
         try:
             x = float(v)
         except ValueError:
-            raise PecletArgumentError("element", f"{k} a number", value) from None
+            raise PecletArgumentError(arg, f"{k} a number", value) from None
         lo, hi = _OPTIONS[k]
         if not (lo < x < hi):
-            raise PecletArgumentError("element", f"{k} > {lo:g} and finite", value)
+            raise PecletArgumentError(arg, f"{k} > {lo:g} and finite", value)
         out[k] = x
     return out
+
+
+def file_element_text(value, arg="element"):
+    """The canonical text of an element given as a file, for a spec other processes read (an
+    ensemble's realizations): a mesh ``PATH[:scale=S,resolution=H]`` (options checked) or an
+    ``.npz`` (a grid or a flat encoding), its path made absolute. None when ``value`` is not a
+    file form (a library element). PecletArgumentError naming ``arg`` when the file does not
+    exist or an option is bad."""
+    if not isinstance(value, (str, os.PathLike)):
+        return None
+    text = os.fspath(value)
+    if is_user_file(text):
+        path, opts = _split(text)
+        _options(text, opts, arg)
+    elif text.endswith(".npz"):
+        path, opts = text, ""
+    else:
+        return None
+    if not os.path.isfile(path):
+        raise PecletArgumentError(arg, "a path to an existing mesh or .npz file", path)
+    return os.path.abspath(path) + (":" + opts if opts else "")
+
+
+def file_digest(text):
+    """SHA-256 (hex) of the file an element text from :func:`file_element_text` names: its
+    contents, so that an edited file is a different element."""
+    import hashlib
+
+    path = text if text.endswith(".npz") else _split(text)[0]
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def user_file_element(value, make_element):
