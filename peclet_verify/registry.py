@@ -164,6 +164,12 @@ CERTIFICATES = (
        "error / allowed"),
     _c("mass_closed_forms", "mass", "mass", "mass_properties",
        "mass properties (closed forms)", "error / allowed"),
+    _c("grid_equation1", "geometry", "repo", "grid_equation1", "equation1 (grid leaves)",
+       "min slack"),
+    _c("grid_sign", "geometry", "repo", "grid_sign", "sign agreement (grid leaf vs source)",
+       "sign disagreement rate"),
+    _c("grid_mass", "mass", "repo", "grid_mass", "mass properties (grid leaf vs mesh)",
+       "error / allowed"),
 ) + tuple(
     _c(f"chung_ooi_{n}", "impact", "impact", f"chung_ooi_{n}", f"Chung & Ooi {n}: {what}",
        "|ratio - e|" if n == 3 else "rel error")

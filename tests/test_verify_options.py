@@ -302,7 +302,7 @@ def test_xdist_report_holds_every_certificate(tmp_path):
     expected |= {f"quadrature convergence [shard {k}/{SHARDS}]" for k in range(1, SHARDS + 1)}
     # the DEM, mass-property and impact families (their backends: peclet's own here)
     expected |= set(R.DEM_CERTIFICATES + R.MASS_CERTIFICATES + R.IMPACT_CERTIFICATES)
-    assert sorted(certs) == sorted(expected) and len(certs) == 28
+    assert sorted(certs) == sorted(expected) and len(certs) == 31
     for name, c in certs.items():
         if name in R.SUITE_CERTIFICATES:
             assert c["status"] == "failed", name
@@ -311,8 +311,8 @@ def test_xdist_report_holds_every_certificate(tmp_path):
         else:
             assert c["status"] == "passed", (name, c["counterexample"])
     summary = proc.stdout.split("peclet certificates", 1)[1]
-    assert summary.count("FAILED") >= 5 and summary.count("PASSED") == 23
-    assert "5 failed, 23 passed" in proc.stdout
+    assert summary.count("FAILED") >= 5 and summary.count("PASSED") == 26
+    assert "5 failed, 26 passed" in proc.stdout
 
 
 # ---------------------------------------------------------------------- replay

@@ -24,11 +24,14 @@ from peclet.core.geom import check_equation1
 from peclet.core.geom.grids import grid_from_callable
 from peclet.core.validation import PecletArgumentError
 
+from .. import registry as REG
 from ..checks import check_range
+from ..search import NOT_APPLICABLE, PropertyResult, make_result
 from .recipes import LIPSCHITZ_KINDS, TreeRecipe
 from .strategies import trees
 
-__all__ = ["SampledTree", "sampled_trees", "sign_violations", "equation1_report"]
+__all__ = ["SampledTree", "sampled_trees", "sign_violations", "equation1_report", "grid_sign",
+           "grid_equation1"]
 
 
 @dataclass(frozen=True)
@@ -92,3 +95,27 @@ def equation1_report(sample: SampledTree, n=20_000, seed=3):
     the source has no solid on the grid."""
     b, _, g, _ = sample.build()
     return None if g is None else check_equation1(b, g, n=n, seed=seed, extent=2.0)
+
+
+def grid_sign(sample: SampledTree) -> PropertyResult:
+    """Certificate: :func:`sign_violations` finds none. Figure: the rate of points farther than
+    a cell diagonal from the source's surface where the grid's sign is not the source's."""
+    name, fig = "grid_sign", REG.figure("grid_sign")
+    bad, judged = sign_violations(sample)
+    if judged == 0:
+        return PropertyResult(name, True, 1, float("nan"), fig, "", NOT_APPLICABLE, "max")
+    text = (f"{len(bad)}/{judged} points beyond a cell diagonal of the source's surface have "
+            f"the other sign on the grid, e.g. {bad[:1].tolist()}")
+    return make_result(name, len(bad) == 0, len(bad) / judged, fig, "max", text)
+
+
+def grid_equation1(sample: SampledTree) -> PropertyResult:
+    """Certificate: Equation 1 holds for the grid leaf's measured ball (:func:`equation1_report`).
+    Figure: the minimum slack."""
+    name, fig = "grid_equation1", REG.figure("grid_equation1")
+    rep = equation1_report(sample)
+    if rep is None:
+        return PropertyResult(name, True, 1, float("nan"), fig, "", NOT_APPLICABLE, "min")
+    text = (f"{rep['violating']:.3g} of the exterior points violate Equation 1 for the grid's "
+            f"measured ball (min slack {rep['min_slack']:.3e})")
+    return make_result(name, rep["violating"] == 0.0, rep["min_slack"], fig, "min", text)
