@@ -319,3 +319,23 @@ def test_a_refused_grid_leaves_the_builder_as_it_was():
     with pytest.raises(PecletArgumentError, match="scale"):
         b.add_grid(values, 0.35, scale=-1.0)
     assert b.num_nodes() == 0
+
+
+@pytest.mark.heavy
+def test_a_bed_in_a_vessel_mesh_with_a_plate_is_analysed_over_its_fluid_only(tmp_path):
+    # the CLI's report used to fail on any tree container (a vessel from a mesh); the voidage
+    # counts only the vessel's fluid region, and the bed stands on the plate, not the vessel's
+    # lowest point
+    import sys
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[1] / "examples"))
+    import support_plate as SP
+
+    from peclet.packing.bed.api import pack
+    from peclet.packing.output import report
+    stl = SP.write_vessel_stl(tmp_path / "vessel.stl", lattice=91)
+    res = pack("sphere", f"{stl}:scale={1 / SP.MM_PER_D}", 40, "rain", seed=2, progress=False)
+    y = res.pack.positions[:, 1]
+    assert y.min() > SP.PLATE_Y + 0.5 * SP.PLATE_T + 0.45          # on the plate, none below
+    rep = report.analyse(res, None, figures=False, exports=False, samples=20_000)
+    assert report.bed_floor(res.pack, res.container) == pytest.approx(y.min() - 0.5)
+    assert 0.3 < rep["bulk"]["eps"] < 0.9 and rep["bulk"]["eps_se"] < 0.1

@@ -290,3 +290,27 @@ def test_profiles_are_bitwise_the_same_at_one_and_two_threads():
     finally:
         numba.set_num_threads(old)
     assert np.array_equal(out[0], out[1])
+
+
+def test_a_fluid_section_counts_only_the_fluid_region():
+    # a cubic lattice with its middle column of spheres replaced by a solid internal wall
+    # x in [1, 2): over the fluid region the voidage is the lattice's 1 - pi/6; over the whole
+    # cross-section it would be 1 - (2/3) pi/6
+    full = _cubic_lattice(3, 8)
+    keep = np.abs(full.positions[:, 0] - 1.5) > 0.25
+    pack = sphere_pack(full.positions[keep], box=(3.0, 3.0))
+    box = P.BoxSection((0.0, 0.0), (3.0, 3.0))
+    fluid = P.FluidSection(box, lambda p: (p[:, 0] < 1.0) | (p[:, 0] >= 2.0))
+    kw = dict(floor_y=0.0, top_y=8.0, crop=1.0, n_windows=6, samples_per_window=30_000, seed=4)
+    b = P.bulk(pack, fluid, **kw)
+    assert abs(b["eps"] - (1 - math.pi / 6)) < 4 * b["eps_se_sampling"]
+    assert b["n_samples"] < 6 * 30_000 * 0.7                   # the wall's points not counted
+    whole = P.bulk(pack, box, **kw)
+    assert abs(whole["eps"] - (1 - 2 / 3 * math.pi / 6)) < 4 * whole["eps_se_sampling"]
+    # an axial slab wholly inside an internal has no fluid: NaN, not a voidage
+    plate = P.FluidSection(box, lambda p: np.abs(p[:, 1] - 4.0) > 0.2)
+    prof = P.axial_profile(pack, plate, 3.6, 4.4, slab=0.2, samples_per_slab=500)
+    assert np.isnan(prof["eps"][1]) and np.isnan(prof["eps"][2])
+    assert np.all(np.isfinite(prof["eps"][[0, 3]]))
+    with pytest.raises(PecletArgumentError, match="FluidSection"):
+        P.FluidSection(box, "not callable")

@@ -28,7 +28,8 @@ from peclet.core.validation import (PecletArgumentError, check_array, check_bool
 from .geometry import PackGeometry, fraction_se, probe_overlap
 from ..bed.freeze import Pack
 
-__all__ = ["ColumnSection", "BoxSection", "periodic_section", "PackSampler", "radial_profile",
+__all__ = ["ColumnSection", "BoxSection", "FluidSection", "periodic_section", "PackSampler",
+           "radial_profile",
            "check_column_holds_bed",
            "axial_profile", "bulk", "orientation_to_axis", "coordination", "de_klerk_voidage",
            "benyahia_oneill_voidage"]
@@ -84,6 +85,42 @@ class BoxSection:
     def sample(self, rng, n):
         return (rng.uniform(self.lo_xz[0], self.hi_xz[0], n),
                 rng.uniform(self.lo_xz[1], self.hi_xz[1], n))
+
+
+@dataclass(frozen=True)
+class FluidSection:
+    """A container whose fluid region changes with height (a vessel from a tree or a CAD mesh,
+    e.g. with a support plate): points are drawn on the rectangle ``box`` (a
+    :class:`BoxSection` holding the region's horizontal extent) and only those where
+    ``fluid(points (K, 3)) -> bool (K,)`` holds count, so a voidage is the fraction of the
+    fluid region's volume, never of the vessel's internals."""
+
+    box: BoxSection
+    fluid: object
+    periodic = False
+
+    def __post_init__(self):
+        if not isinstance(self.box, BoxSection) or not callable(self.fluid):
+            raise PecletArgumentError("section", "a FluidSection(BoxSection, fluid callable)",
+                                      self)
+
+    @property
+    def area(self):
+        return self.box.area
+
+    def sample(self, rng, n):
+        return self.box.sample(rng, n)
+
+
+#: The cross-sections the profiles accept
+SECTIONS = (ColumnSection, BoxSection, FluidSection)
+
+
+def _fluid_mask(section, pts):
+    """Which of ``pts`` are in the section's fluid region (None: all of them)."""
+    if not isinstance(section, FluidSection):
+        return None
+    return np.asarray(section.fluid(pts), bool)
 
 
 def periodic_section(pack: Pack) -> BoxSection:
@@ -156,10 +193,17 @@ def _check_span(y_lo, y_hi):
     return lo, hi
 
 
-def _fractions(flags, groups, n_per):
-    """Per-group mean of boolean ``flags`` laid out group-major, and binomial standard errors."""
-    p = flags.reshape(groups, n_per).mean(axis=1)
-    return p, np.sqrt(np.maximum(p * (1.0 - p), 0.0) / n_per)
+def _fractions(flags, groups, n_per, mask=None):
+    """Per-group mean of boolean ``flags`` laid out group-major, and binomial standard errors;
+    with ``mask``, over the masked points of each group only (NaN for a group with none)."""
+    if mask is None:
+        p = flags.reshape(groups, n_per).mean(axis=1)
+        return p, np.sqrt(np.maximum(p * (1.0 - p), 0.0) / n_per)
+    m = mask.reshape(groups, n_per)
+    count = m.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p = (flags.reshape(groups, n_per) & m).sum(axis=1) / count
+        return p, np.sqrt(np.maximum(p * (1.0 - p), 0.0) / count)
 
 
 # ---------------------------------------------------------------------- profiles
@@ -239,13 +283,16 @@ def axial_profile(pack, section, y_lo, y_hi, slab=0.05, d_elem=1.0, samples_per_
                   seed=0):
     """Voidage of horizontal slabs of height ``slab * d_elem`` over the cross-section.
 
-    ``section``: a :class:`ColumnSection` or :class:`BoxSection`; slabs tile [y_lo, y_hi) (the
+    ``section``: a :class:`ColumnSection`, :class:`BoxSection` or :class:`FluidSection`
+    (a slab's voidage is then over its fluid points; NaN where it has none); slabs tile
+    [y_lo, y_hi) (the
     top one may be thinner). Returns a dict: ``y`` (slab centres, world), ``y_edges``, ``eps``,
     ``eps_se`` (binomial), ``n_per_slab``.
     """
     pack = _check_pack(pack)
-    if not isinstance(section, (ColumnSection, BoxSection)):
-        raise PecletArgumentError("section", "a ColumnSection or BoxSection", section)
+    if not isinstance(section, SECTIONS):
+        raise PecletArgumentError("section", "a ColumnSection, BoxSection or FluidSection",
+                                  section)
     lo, hi = _check_span(y_lo, y_hi)
     d = check_float("d_elem", d_elem, 0.0, lo_open=True)
     h = check_float("slab", slab, 0.0, lo_open=True) * d
@@ -255,8 +302,9 @@ def axial_profile(pack, section, y_lo, y_hi, slab=0.05, d_elem=1.0, samples_per_
     rng = np.random.default_rng(seed)
     x, z = section.sample(rng, nslab * n)
     y = edges[:-1, None] + rng.random((nslab, n)) * np.diff(edges)[:, None]
-    solid, se = _fractions(_sampler_for(pack, section).solid(np.column_stack([x, y.ravel(), z])),
-                           nslab, n)
+    pts = np.column_stack([x, y.ravel(), z])
+    solid, se = _fractions(_sampler_for(pack, section).solid(pts), nslab, n,
+                           _fluid_mask(section, pts))
     return dict(y=0.5 * (edges[:-1] + edges[1:]), y_edges=edges, eps=1.0 - solid, eps_se=se,
                 n_per_slab=n)
 
@@ -277,8 +325,9 @@ def bulk(pack, section, floor_y=0.0, top_y=None, d_elem=1.0, crop=2.0, n_windows
     the bed-voidage correlations (e.g. Benyahia & O'Neill 2005) describe.
     """
     pack = _check_pack(pack)
-    if not isinstance(section, (ColumnSection, BoxSection)):
-        raise PecletArgumentError("section", "a ColumnSection or BoxSection", section)
+    if not isinstance(section, SECTIONS):
+        raise PecletArgumentError("section", "a ColumnSection, BoxSection or FluidSection",
+                                  section)
     y0 = check_float("floor_y", floor_y)
     top = float(pack.positions[:, 1].max()) if top_y is None else check_float("top_y", top_y)
     d = check_float("d_elem", d_elem, 0.0, lo_open=True)
@@ -305,7 +354,9 @@ def bulk(pack, section, floor_y=0.0, top_y=None, d_elem=1.0, crop=2.0, n_windows
     y = edges[:-1, None] + rng.random((nw, n)) * np.diff(edges)[:, None]
     pts = np.column_stack([x, y.ravel(), z])
     smp = _sampler_for(pack, section)
-    solid, _ = _fractions(smp.solid(pts), nw, n)
+    mask = _fluid_mask(section, pts)
+    counted = nw * n if mask is None else int(mask.sum())
+    solid, _ = _fractions(smp.solid(pts), nw, n, mask)
     if not np.all(solid > 0):
         k = int(np.flatnonzero(~(solid > 0))[0])
         raise PecletArgumentError(
@@ -315,13 +366,13 @@ def bulk(pack, section, floor_y=0.0, top_y=None, d_elem=1.0, crop=2.0, n_windows
     eps_w = 1.0 - solid
     out = dict(windows=np.column_stack([edges[:-1], edges[1:]]), eps_windows=eps_w,
                eps=float(eps_w.mean()), eps_se=float(eps_w.std(ddof=1) / math.sqrt(nw)),
-               eps_se_sampling=fraction_se(float(eps_w.mean()), nw * n),
-               n_samples=nw * n, crop=c, top_y=top)
+               eps_se_sampling=fraction_se(float(eps_w.mean()), counted),
+               n_samples=counted, crop=c, top_y=top)
     if smp.has_envelope:
-        f_w, _ = _fractions(smp.in_envelope(pts), nw, n)
+        f_w, _ = _fractions(smp.in_envelope(pts), nw, n, mask)
         out.update(f_env_windows=f_w, f_env=float(f_w.mean()),
                    f_env_se=float(f_w.std(ddof=1) / math.sqrt(nw)),
-                   f_env_se_sampling=fraction_se(float(f_w.mean()), nw * n))
+                   f_env_se_sampling=fraction_se(float(f_w.mean()), counted))
     else:
         out.update(f_env_windows=np.full(nw, math.nan), f_env=math.nan, f_env_se=math.nan,
                    f_env_se_sampling=math.nan)

@@ -242,6 +242,13 @@ class Container:
                                     -math.inf)
         return self._cache[key]
 
+    def fluid_box(self):
+        """(lo (3,), hi (3,)) bounding a tree container's fluid region (its bounding ball's
+        box; world lengths)."""
+        if self.kind != "tree":
+            raise PecletArgumentError("container", "a tree container", self.kind)
+        return self._tree_box()
+
     def fluid_phi(self, pts):
         """phi of a tree container's fluid region at world points (K, 3) (< 0 inside)."""
         return self._tree_builder().eval_root(self.tree[2], np.asarray(pts, dtype=np.float64))

@@ -38,9 +38,18 @@ STL_PER_ELEMENT_MAX = 200
 STL_LAYOUTS = ("merged", "per-element")
 
 
+def bed_floor(pack, cont):
+    """The height the bed stands on: the container's floor, or for a tree container (a vessel
+    whose internals, e.g. a support plate, hold the bed above its lowest point) the lowest
+    element's bounding-sphere bottom."""
+    if cont.kind != "tree":
+        return cont.floor_y
+    return float((pack.positions[:, 1] - pack.bounding_radius).min())
+
+
 def _crop(pack, cont):
     top = float(pack.positions[:, 1].max())
-    h = (top - cont.floor_y) / cont.d
+    h = (top - bed_floor(pack, cont)) / cont.d
     return min(CROP, h / 3.0), top
 
 
@@ -82,16 +91,21 @@ def analyse(res, out=None, figures=True, samples=100_000, shell_samples=3000, ex
         section = profiles.ColumnSection(cont.radius, cont.center_xz)
     elif cont.kind == "box":
         section = profiles.periodic_section(pack)
+    elif cont.kind == "tree":
+        lo, hi = cont.fluid_box()
+        section = profiles.FluidSection(profiles.BoxSection((lo[0], lo[2]), (hi[0], hi[2])),
+                                        lambda p: cont.fluid_phi(p) < 0.0)
     else:
         section = profiles.BoxSection(*_box_section(cont))
+    floor = bed_floor(pack, cont)
     rep = dict(container=cont.label(), element=res.element.name, count=int(pack.n),
                d_elem=d, crop=crop, bed_top=top)
-    b = profiles.bulk(pack, section, floor_y=cont.floor_y, top_y=top, d_elem=d, crop=crop,
+    b = profiles.bulk(pack, section, floor_y=floor, top_y=top, d_elem=d, crop=crop,
                       samples_per_window=samples)
     rep["bulk"] = {k: b[k] for k in ("eps", "eps_se", "f_env", "f_env_se")}
     rep["bulk"]["eps_windows"] = np.asarray(b["eps_windows"]).tolist()
     timing["bulk"] = time.perf_counter() - t
-    y_lo, y_hi = cont.floor_y + crop * d, top - crop * d
+    y_lo, y_hi = floor + crop * d, top - crop * d
     prof = None
     if cont.kind == "column":
         t = time.perf_counter()
@@ -105,7 +119,7 @@ def analyse(res, out=None, figures=True, samples=100_000, shell_samples=3000, ex
             rep["benyahia_oneill"] = float(profiles.benyahia_oneill_voidage(cont.size[0]))
         timing["radial"] = time.perf_counter() - t
     t = time.perf_counter()
-    ax = profiles.axial_profile(pack, section, cont.floor_y, top + 0.5 * d, slab=0.1,
+    ax = profiles.axial_profile(pack, section, floor, top + 0.5 * d, slab=0.1,
                                 d_elem=d, samples_per_slab=2000)
     rep["axial"] = dict(y=ax["y"].tolist(), eps=ax["eps"].tolist())
     ori = profiles.orientation_to_axis(pack, (0.0, 1.0, 0.0))
