@@ -135,3 +135,33 @@ def test_cli_refuses_hertz_with_grow_and_with_resume(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("peclet pack: error: --contact must be")
 
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_an_appended_batch_keeps_the_hertz_histories(keep, monkeypatch):
+    # appending a body (insert_bodies, as a rain batch does) keeps the Mindlin springs of the
+    # bodies already in (their indices, hence their contact keys, are unchanged); without the
+    # hook a change of N clears every history at the next substep
+    from peclet.dem import Simulation
+    from peclet.packing.bed.containers import parse_container
+    from peclet.packing.bed.contact import advance
+    from peclet.packing.bed.protocols import Body, insert_bodies, new_simulation
+
+    if not keep:
+        monkeypatch.setattr(Simulation, "keep_contact_histories", lambda self: None)
+    model = element_model(resolve_element("sphere"))
+    cont = parse_container("box:6").bound(1.0)
+    sim, sid = new_simulation(model.register, cont, GLASS, GLASS, (10, 8), 9.81, 2e-3, 20.0, 2)
+    body = Body(sid, model.mass, model.inv_inertia, model.bounding_radius, 1.0)
+    HertzContact().configure(sim, model, 2e-3)
+    q = np.array([[0.0, 0.0, 0.0, 1.0]])
+    insert_bodies(sim, body, np.array([[1.0, 0.49989, 1.0]]), q, np.array([[1.0, 0.0, 0.0]]))
+    for _ in range(5):
+        advance(sim, 2e-3)
+    hz = sim.world.hertz
+    keys, xi = hz.keys.copy(), hz.xi.copy()
+    assert len(keys) == 1 and np.linalg.norm(xi) > 0.0      # the sliding sphere's spring
+    insert_bodies(sim, body, np.array([[4.0, 5.0, 4.0]]), q, np.zeros((1, 3)))
+    assert (hz.n_bodies == 2) is keep
+    np.testing.assert_array_equal(hz.keys, keys)
+    np.testing.assert_array_equal(hz.xi, xi)

@@ -31,6 +31,7 @@ validation/results/spheres_hertz.json``).
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -110,9 +111,10 @@ def box(mu, side=5.0, height=10.0, seed=1, protocol=BOX_RAIN, progress=False):
 BOX_REF = {0.0: (0.625, 0.645), 1.0: (0.54, 0.59)}
 
 
-def table(cols, boxes):
-    lines = [f"protocol: rain, 1 sphere / 4 steps (dt 2e-3), drop {RAIN.drop:g} d (columns) "
-             f"or {BOX_RAIN.drop:g} d (boxes) above the bed at {RAIN.speed:g} d/t, e_n 0.3, "
+def table(cols, boxes, rain=RAIN):
+    lines = [f"protocol: rain, {rain.batch} sphere(s) / {rain.insert_every} steps (dt 2e-3), "
+             f"drop {rain.drop:g} d (columns) "
+             f"or {BOX_RAIN.drop:g} d (boxes) above the bed at {rain.speed:g} d/t, e_n 0.3, "
              f"mu = mu_wall (0.3 in columns); cropped {bed_report.CROP:g} d at floor and "
              "surface", "",
              f"{'case':<14} {'law':<8} {'seed':>4} {'n':>5} {'ours':>16} {'reference':>20}  "
@@ -156,21 +158,30 @@ def main(argv=None):
                     help="the columns' N = D_t / d, each >= 1.5 (default 5,8,10; --quick 5)")
     ap.add_argument("--seeds", type=vargs.integer_list(0, 2 ** 31), default=None,
                     help="the columns' seeds (default 1)")
+    ap.add_argument("--drop", type=vargs.real(0.0, 1e4), default=RAIN.drop,
+                    help=f"the columns' drop height above the bed, d (default {RAIN.drop:g})")
+    ap.add_argument("--batch", type=vargs.integer(1, 10 ** 4), default=RAIN.batch,
+                    help=f"spheres per insertion in the columns (default {RAIN.batch})")
+    ap.add_argument("--insert-every", type=vargs.integer(1, 10 ** 4),
+                    default=RAIN.insert_every,
+                    help=f"steps between insertions (default {RAIN.insert_every})")
     a = ap.parse_args(argv)
     h = 4.0 if a.quick else 10.0
     ns = () if a.only == "boxes" else tuple(a.ns) if a.ns else (5,) if a.quick else (5, 8, 10)
     mus = () if a.only == "columns" else (0.0, 1.0) if a.quick else (0.0, 0.1, 0.3, 1.0)
     laws = {"impulse": [None], "hertz": [HertzContact()],
             "both": [None, HertzContact()]}[a.contact]
-    cols = [column(n, height=h, seed=s, progress=a.progress, contact=law)
+    rain = dataclasses.replace(RAIN, drop=a.drop, batch=a.batch, insert_every=a.insert_every)
+    cols = [column(n, height=h, seed=s, protocol=rain, progress=a.progress, contact=law)
             for n in ns for s in (a.seeds or [1]) for law in laws]
     boxes = [box(m, height=h, progress=a.progress) for m in mus]
-    text = table(cols, boxes)
+    text = table(cols, boxes, rain)
     print(text)
 
     def w(tmp):
         with open(tmp, "w") as fh:
-            json.dump(dict(columns=cols, boxes=boxes, quick=a.quick, table=text), fh, indent=1,
+            json.dump(dict(columns=cols, boxes=boxes, quick=a.quick, table=text,
+                           rain=rain.to_spec()), fh, indent=1,
                       default=lambda o: o.item() if isinstance(o, np.generic) else str(o))
     atomic_write(a.out, w)
     return 0
