@@ -21,9 +21,17 @@ analysis) on the textbook case.
 
 Prints a table (ours beside the reference, with the protocol) and writes JSON. ``--quick``
 runs reduced beds (about 4 d tall, N = 5 only and two frictions) for a smoke test.
+
+``--contact hertz`` rains the columns with the Hertz–Mindlin law instead of the impulse engine
+(``peclet.packing.bed.contact.HertzContact``: E = 1e7 Pa for 1 mm spheres of 2500 kg/m^3, the
+LAMMPS column's, nu 0.3, substeps of at most 0.2 Rayleigh times), ``--contact both`` runs
+each column with both laws from the same protocol and seeds; ``--ns`` and ``--seeds`` choose
+the columns (e.g. ``--only columns --contact both --ns 8 --seeds 1,2 --out
+validation/results/spheres_hertz.json``).
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -34,6 +42,7 @@ import numpy as np
 
 from peclet.core.files import atomic_write
 from peclet.packing import Material, RainProtocol, pack
+from peclet.packing.bed.contact import HertzContact
 from peclet.packing.output import report as bed_report
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -61,12 +70,13 @@ def count_for(area, height, phi=0.6):
     return int(round(phi * area * height / V_SPHERE))
 
 
-def column(n, height=10.0, seed=1, protocol=RAIN, progress=False):
-    """Rain spheres into a column of N = ``n``; returns the row of the table."""
+def column(n, height=10.0, seed=1, protocol=RAIN, progress=False, contact=None):
+    """Rain spheres into a column of N = ``n`` with the contact law ``contact`` (None: the
+    impulse engine; a ``HertzContact``); returns the row of the table."""
     cnt = count_for(math.pi * (0.5 * n) ** 2, height)
     t = time.perf_counter()
     res = pack("sphere", f"column:{n:g}", count=cnt, protocol=protocol, material=GLASS,
-               seed=seed, progress=progress)
+               seed=seed, progress=progress, contact=contact)
     rep = bed_report.analyse(res, None, figures=False, exports=False)
     f = rep["radial"]["features"]
     ref = benyahia_oneill(n)
@@ -77,7 +87,10 @@ def column(n, height=10.0, seed=1, protocol=RAIN, progress=False):
         and 0.45 <= f["min1"][0] <= 0.65,
         max1=f["max1"] is not None and 0.50 <= f["max1"][1] <= 0.62,
         min2=f["min2"] is not None and f["min2"][1] < 0.35)
-    return dict(case=f"column N={n:g}", count=cnt, steps=res.steps, seconds=time.perf_counter()
+    law = "impulse" if contact is None else contact.law
+    return dict(case=f"column N={n:g}", law=law, seed=seed,
+                contact=None if contact is None else contact.to_spec(),
+                count=cnt, steps=res.steps, seconds=time.perf_counter()
                 - t, eps=rep["bulk"]["eps"], eps_se=rep["bulk"]["eps_se"], eps_ref=ref,
                 features=f, checks=checks, container=res.container.label(),
                 bed_top=rep["bed_top"])
@@ -98,17 +111,20 @@ def box(mu, side=5.0, height=10.0, seed=1, protocol=BOX_RAIN, progress=False):
 BOX_REF = {0.0: (0.625, 0.645), 1.0: (0.54, 0.59)}
 
 
-def table(cols, boxes):
-    lines = [f"protocol: rain, 1 sphere / 4 steps (dt 2e-3), drop {RAIN.drop:g} d (columns) "
-             f"or {BOX_RAIN.drop:g} d (boxes) above the bed at {RAIN.speed:g} d/t, e_n 0.3, "
+def table(cols, boxes, rain=RAIN):
+    lines = [f"protocol: rain, {rain.batch} sphere(s) / {rain.insert_every} steps (dt 2e-3), "
+             f"drop {rain.drop:g} d (columns) "
+             f"or {BOX_RAIN.drop:g} d (boxes) above the bed at {rain.speed:g} d/t, e_n 0.3, "
              f"mu = mu_wall (0.3 in columns); cropped {bed_report.CROP:g} d at floor and "
              "surface", "",
-             f"{'case':<14} {'n':>5} {'ours':>16} {'reference':>20}  radial profile (z, eps)"]
+             f"{'case':<14} {'law':<8} {'seed':>4} {'n':>5} {'ours':>16} {'reference':>20}  "
+             "radial profile (z, eps)"]
     for r in cols:
         f = r["features"]
         fm = lambda p: "-" if p is None else f"{p[1]:.2f}@{p[0]:.2f}"  # noqa: E731
         ok = "".join("+" if v else "x" for v in r["checks"].values())
-        lines.append(f"{r['case']:<14} {r['count']:>5} {r['eps']:>8.4f}+-{r['eps_se']:.4f} "
+        lines.append(f"{r['case']:<14} {r.get('law', 'impulse'):<8} {r.get('seed', 1):>4} "
+                     f"{r['count']:>5} {r['eps']:>8.4f}+-{r['eps_se']:.4f} "
                      f"{'B&O ' + format(r['eps_ref'], '.4f') + ' +-0.02':>20}  wall "
                      f"{fm(f['wall'])} min {fm(f['min1'])} max {fm(f['max1'])} min2 "
                      f"{fm(f['min2'])} [{ok}]")
@@ -136,18 +152,36 @@ def main(argv=None):
                     "validation/results/spheres.json)")
     ap.add_argument("--progress", action="store_true")
     ap.add_argument("--only", choices=("columns", "boxes"), default=None)
+    ap.add_argument("--contact", choices=("impulse", "hertz", "both"), default="impulse",
+                    help="the columns' contact law (module notes; default impulse)")
+    ap.add_argument("--ns", type=vargs.real_list(1.5, 1e4), default=None,
+                    help="the columns' N = D_t / d, each >= 1.5 (default 5,8,10; --quick 5)")
+    ap.add_argument("--seeds", type=vargs.integer_list(0, 2 ** 31), default=None,
+                    help="the columns' seeds (default 1)")
+    ap.add_argument("--drop", type=vargs.real(0.0, 1e4), default=RAIN.drop,
+                    help=f"the columns' drop height above the bed, d (default {RAIN.drop:g})")
+    ap.add_argument("--batch", type=vargs.integer(1, 10 ** 4), default=RAIN.batch,
+                    help=f"spheres per insertion in the columns (default {RAIN.batch})")
+    ap.add_argument("--insert-every", type=vargs.integer(1, 10 ** 4),
+                    default=RAIN.insert_every,
+                    help=f"steps between insertions (default {RAIN.insert_every})")
     a = ap.parse_args(argv)
     h = 4.0 if a.quick else 10.0
-    ns = () if a.only == "boxes" else (5,) if a.quick else (5, 8, 10)
+    ns = () if a.only == "boxes" else tuple(a.ns) if a.ns else (5,) if a.quick else (5, 8, 10)
     mus = () if a.only == "columns" else (0.0, 1.0) if a.quick else (0.0, 0.1, 0.3, 1.0)
-    cols = [column(n, height=h, progress=a.progress) for n in ns]
+    laws = {"impulse": [None], "hertz": [HertzContact()],
+            "both": [None, HertzContact()]}[a.contact]
+    rain = dataclasses.replace(RAIN, drop=a.drop, batch=a.batch, insert_every=a.insert_every)
+    cols = [column(n, height=h, seed=s, protocol=rain, progress=a.progress, contact=law)
+            for n in ns for s in (a.seeds or [1]) for law in laws]
     boxes = [box(m, height=h, progress=a.progress) for m in mus]
-    text = table(cols, boxes)
+    text = table(cols, boxes, rain)
     print(text)
 
     def w(tmp):
         with open(tmp, "w") as fh:
-            json.dump(dict(columns=cols, boxes=boxes, quick=a.quick, table=text), fh, indent=1,
+            json.dump(dict(columns=cols, boxes=boxes, quick=a.quick, table=text,
+                           rain=rain.to_spec()), fh, indent=1,
                       default=lambda o: o.item() if isinstance(o, np.generic) else str(o))
     atomic_write(a.out, w)
     return 0

@@ -65,3 +65,78 @@ def threads_option(text, flag="--threads"):
     if not 1 <= threads <= cap:
         raise PecletArgumentError(flag, f"in [1, {cap}] (NUMBA_NUM_THREADS)", threads)
     return threads
+
+
+#: The Hertz law's options (given only with ``--contact hertz``): flag -> attribute.
+HERTZ_OPTIONS = {"--youngs": "youngs", "--poisson": "poisson",
+                 "--rayleigh-fraction": "rayleigh_fraction", "--density": "density",
+                 "--diameter": "diameter"}
+
+
+def add_contact_options(parser):
+    """--contact and the Hertz law's --youngs, --poisson, --rayleigh-fraction, --density,
+    --diameter (values stay text: :func:`contact_option` checks them)."""
+    parser.add_argument("--contact", default="impulse", choices=("impulse", "hertz"),
+                        help="contact law: impulse (the default, the page's engine) or hertz "
+                        "(Hertz-Mindlin, explicit substeps; the model LAMMPS's hertz/material "
+                        "+ mindlin runs)")
+    parser.add_argument("--youngs", default=None,
+                        help="hertz only: Young's modulus E. A number is in bed units (rho D "
+                        "x 1 m/s^2, the bed's pressure unit: density 1, D = 1, g = 9.81); "
+                        "with the suffix Pa (e.g. 1e7Pa) it is physical and converted with "
+                        "--density and --diameter: E_bed = E / (density diameter x 1 m/s^2). "
+                        "Default 1e7Pa (4e6 for 1 mm glass-like spheres)")
+    parser.add_argument("--poisson", default=None,
+                        help="hertz only: Poisson's ratio in (-1, 0.5) (default 0.3)")
+    parser.add_argument("--rayleigh-fraction", default=None,
+                        help="hertz only: the substep as a fraction of the element's Rayleigh "
+                        "time, in (0, 0.3] (default 0.2); each protocol step (dt 2e-3) is "
+                        "split into the fewest substeps that meet it (printed)")
+    parser.add_argument("--density", default=None, help="hertz only, with --youngs ...Pa: "
+                        "the elements' density in kg/m^3 (default 2500)")
+    parser.add_argument("--diameter", default=None, help="hertz only, with --youngs ...Pa: "
+                        "the element diameter D in m (default 1e-3)")
+
+
+def contact_option(args, protocol=None):
+    """The contact law of the command's ``--contact`` options: None (impulse) or a
+    ``HertzContact``. A Hertz option without ``--contact hertz``, --density or --diameter
+    without a physical --youngs (``...Pa``), ``--contact hertz`` with a protocol it does not
+    run (``protocol`` "grow"), and every out-of-range value are one PecletArgumentError
+    naming the flag."""
+    from peclet.packing.bed.contact import DEFAULT_SI, HertzContact
+
+    given = {f: getattr(args, a) for f, a in HERTZ_OPTIONS.items()
+             if getattr(args, a) is not None}
+    if args.contact != "hertz":
+        for flag, value in given.items():
+            raise PecletArgumentError(flag, "given only with --contact hertz", value)
+        return None
+    if protocol == "grow":
+        raise PecletArgumentError("--contact", "impulse with --protocol grow (growth to "
+                                  "jamming runs its own step)", args.contact)
+    text = str(args.youngs if args.youngs is not None else f"{DEFAULT_SI['youngs']:g}Pa")
+    si = text.strip().endswith("Pa")
+    if not si:
+        for flag in ("--density", "--diameter"):
+            if flag in given:
+                raise PecletArgumentError(flag, "given only with a physical --youngs (a value "
+                                          "in Pa, e.g. 1e7Pa)", given[flag])
+    kw = {}
+    for flag, key in (("--poisson", "poisson"), ("--rayleigh-fraction", "rayleigh_fraction")):
+        if flag in given:
+            kw[key] = number(flag, given[flag], float)
+    try:
+        e = number("--youngs", text.strip()[:-2] if si else text, float)
+        if si:
+            phys = {k: number(f, given[f], float) for f, k in (("--density", "density"),
+                                                                ("--diameter", "diameter"))
+                    if f in given}
+            return HertzContact.from_si(e, **phys, **kw)
+        return HertzContact(e, **kw)
+    except PecletArgumentError as exc:
+        flag = {"youngs": "--youngs", "poisson": "--poisson", "density": "--density",
+                "diameter": "--diameter", "rayleigh_fraction": "--rayleigh-fraction"}
+        raise PecletArgumentError(flag.get(exc.argument, exc.argument),
+                                  str(exc).split(" must be ", 1)[-1].rsplit(", got", 1)[0],
+                                  exc.value) from None

@@ -19,7 +19,7 @@ import sys
 from peclet.core.outputs import check_output_dir, clear_outputs, recording
 from peclet.core.validation import PecletArgumentError, check_float, check_int
 
-from .options import add_bed_options
+from .options import HERTZ_OPTIONS, add_bed_options, add_contact_options, contact_option
 
 __all__ = ["add_parser", "run", "OUTPUTS"]
 
@@ -39,6 +39,7 @@ def add_parser(sub):
     p.set_defaults(func=run)
     add_bed_options(p, ("page", "rain", "grow"))
     p.set_defaults(container=None)      # grow takes none; page and rain default to box:3.5
+    add_contact_options(p)
     p.add_argument("--count", default="48", help="number of elements (default 48)")
     p.add_argument("--mu", default="0.5", help="element-element friction (default 0.5)")
     p.add_argument("--wall-mu", default=None, help="wall friction (default: --mu)")
@@ -216,6 +217,11 @@ def run(args):
                                   f"at the sampling's peak: {SAMPLES_MAX} is about "
                                   f"{SAMPLES_MAX * BYTES_PER_SAMPLE / 1e9:g} GB")
     if args.resume is not None:
+        for flag, value in [("--contact", args.contact)] + [
+                (f, getattr(args, a)) for f, a in HERTZ_OPTIONS.items()]:
+            if value is not None and not (flag == "--contact" and value == "impulse"):
+                raise PecletArgumentError(flag, "left out with --resume (the checkpoint "
+                                          "carries the run's contact law)", value)
         cdir = args.resume
         _missing_file("--resume", cdir, "a pack checkpoint directory (an interrupted run's "
                       "--out or its checkpoint/)")
@@ -262,6 +268,7 @@ def run(args):
     if args.protocol not in ("page", "rain", "grow"):
         raise PecletArgumentError("--protocol", "one of 'page', 'rain', 'grow'", args.protocol)
     _protocol_options(args)
+    law = contact_option(args, args.protocol)
     if args.protocol == "grow":
         return _grow(args, count, seed, mu, e, threads)
     if args.container is None:
@@ -291,8 +298,20 @@ def run(args):
     if args.protocol == "rain":
         proto = dataclasses.replace(proto, batch=batch, insert_every=every_k, drop=drop)
     _bed_rules(args.element, args.container, count, proto, seed)
-    cdir = os.path.join(out, "checkpoint")
     from peclet.packing import Material
+    if law is not None:        # E, nu and the step rule, printed with the dt it chose
+        for m, flag in ((Material(e, 0.0, mu), "--restitution"),
+                        (Material(we, 0.0, wmu), "--wall-restitution")):
+            try:
+                law.check_material(m, "material")
+            except PecletArgumentError as exc:
+                raise _renamed(exc, flag) from None
+        model = api.element_model(api.resolve_element(args.element))
+        try:
+            print(f"peclet pack: {law.describe(model, proto.dt)}", file=sys.stderr)
+        except PecletArgumentError as exc:
+            raise _renamed(exc, "--youngs") from None
+    cdir = os.path.join(out, "checkpoint")
     with recording(out, OUTPUTS):
         # the old checkpoint goes now; the rest is replaced when the run is done
         clear_outputs(out, tuple(f for f in previous if f == "checkpoint"))
@@ -300,7 +319,7 @@ def run(args):
             res = api.pack(args.element, args.container, count, proto, Material(e, 0.0, mu),
                            Material(we, 0.0, wmu), seed=seed, threads=threads,
                            progress=not args.quiet, checkpoint_dir=cdir,
-                           checkpoint_every=every)
+                           checkpoint_every=every, contact=law)
         except PecletArgumentError as exc:
             flag = {"container": "--container", "element": "--element"}.get(exc.argument)
             if flag is None:

@@ -66,6 +66,20 @@ class ContactLaws:
         ExplicitEngine(HertzLaw(), substeps, skin_frac).step(self.world,
                                                               self.world.resolve_dt(dt))
 
+    def keep_contact_histories(self):
+        """Declare that the bodies were only appended since the last step (N grew, the first
+        bodies keep their indices, as :meth:`set_positions` keeps their attributes): the
+        explicit laws' tangential and rolling histories, keyed by body index, stay valid and
+        are kept (otherwise a change of N clears them at the next substep). A rained bed
+        appends a batch every few steps; clearing would reset every Mindlin spring of the
+        bed each time. No effect on the impulse engine (whose warm start any change of N
+        clears) or on a history already cleared."""
+        n = self.world.bodies.n
+        for state in {id(s): s for s in [self.world.hertz,
+                                          *self.world.histories.values()]}.values():
+            if 0 <= state.n_bodies <= n:
+                state.n_bodies = n
+
     def hertz_contacts(self):
         """The touching contacts of the last Hertz substep with their forces (a dict, see
         :func:`peclet.dem.hertz.last_listing`; SI-like units of the caller, world frame)."""

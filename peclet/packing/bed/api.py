@@ -32,6 +32,7 @@ from peclet.core.validation import PecletArgumentError, check_bool, check_int
 
 from . import checkpoint as ckpt
 from .containers import Container, parse_container
+from .contact import parse_contact
 from .elements import ELEMENTS, Element, parse_element
 from .freeze import Pack
 from .material import Material, as_material
@@ -397,7 +398,7 @@ def check_run_args(count, seed, threads, progress, max_steps, checkpoint_dir,
 
 def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
          material=Material(), wall_material=None, seed=5, threads=None, progress=True,
-         max_steps=None, checkpoint_dir=None, checkpoint_every=None, build=None):
+         max_steps=None, checkpoint_dir=None, checkpoint_every=None, build=None, contact=None):
     """Pack ``count`` copies of ``element`` into ``container`` by ``protocol``.
 
     element: a library name (``peclet.packing.ELEMENTS``), with construction parameters as
@@ -412,7 +413,10 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
     after this many steps in all (the result then has ``complete=False``). checkpoint_dir /
     checkpoint_every: checkpoint every K steps (see :func:`resume`). build: overrides of
     ``scene_particle.build``'s knobs (n, shell_resolution, target_shell_points), taken as
-    given; those not given follow the thinnest wall (:func:`element_model`).
+    given; those not given follow the thinnest wall (:func:`element_model`). contact: the
+    contact law, None or "impulse" (the default) or Hertz–Mindlin ("hertz", a
+    ``contact.HertzContact`` with E in bed units or from Pa, nu and the Rayleigh-time step
+    rule; recorded in the spec, so checkpoints and :func:`resume` carry it).
     Returns a :class:`PackResult`.
     """
     count, seed, max_steps, every = check_run_args(count, seed, threads, progress, max_steps,
@@ -421,6 +425,9 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
     cont = parse_container(container)
     mat = as_material(material, "material")
     wmat = mat if wall_material is None else as_material(wall_material, "wall_material")
+    law = parse_contact(contact)
+    for m, name in (() if law is None else ((mat, "material"), (wmat, "wall_material"))):
+        law.check_material(m, name)
     if isinstance(element, (str, os.PathLike)) and str(element).endswith(".npz") \
             and not os.path.isfile(element):
         raise PecletArgumentError("element", ELEMENT_FORMS, element,
@@ -441,6 +448,8 @@ def pack(element="pall_ring", container="box:3.5", count=48, protocol="page",
                 container=cont.to_spec(), count=count, protocol=proto.to_spec(),
                 material=mat.to_dict(), wall_material=wmat.to_dict(), seed=seed,
                 iterations=list(ITERATIONS), build=dict(BUILD, **(build or {})))
+    if law is not None:                 # the impulse default leaves the spec as it was
+        spec["contact"] = law.to_spec()
     _set_threads(threads)
     model = element_model(el, build)
     if checkpoint_dir is not None:
@@ -489,6 +498,9 @@ def _run(model, cont, proto, mat, wmat, spec, seed, progress, max_steps, cdir, e
     if resumed is None:
         sim, sid = new_simulation(model.register, cont, mat, wmat, ITERATIONS, G * d, proto.dt,
                                   y_top, spec["count"])
+        law = parse_contact(spec.get("contact"))
+        if law is not None:             # a resumed simulation carries its law (persistence)
+            law.configure(sim, model, proto.dt)
         body.shape_id = sid
         if len(P):
             insert_bodies(sim, body, P, Q, V)

@@ -34,6 +34,7 @@ import numpy as np
 
 from peclet.core.validation import PecletArgumentError, check_float, check_int
 from peclet.packing.bed.containers import MAX_DROP
+from peclet.packing.bed.contact import advance
 
 __all__ = ["Protocol", "Phase", "PROTOCOLS", "PageProtocol", "RainProtocol", "RunState", "Body",
            "start_cloud", "drive", "parse_protocol", "new_simulation", "insert_bodies",
@@ -125,7 +126,8 @@ class Protocol:
     - :meth:`phases`, :meth:`estimate_steps` and :meth:`quench_next` (the landing rule's
       moment, see the module notes).
 
-    and inherits the one :meth:`step` (before_step -> kicks -> ``sim.step(dt)`` -> quench ->
+    and inherits the one :meth:`step` (before_step -> kicks -> ``contact.advance(sim, dt)``,
+    the impulse step or the Hertz substeps the simulation's law asks for -> quench ->
     bookkeeping -> after_step), the tap (:meth:`kick`), the quench (:meth:`quench`), the
     kinetic-energy stop rule and :meth:`to_spec`. The shared code reads the parameters it needs
     from the subclass by name: ``tap_speed`` (the kick), ``damp`` (the quench), ``ke_tol``,
@@ -185,7 +187,7 @@ class Protocol:
         self.before_step(sim, ctx, st, rng)
         for _ in range(kicks):
             self.kick(sim, ctx)
-        sim.step(self.dt)
+        advance(sim, self.dt)
         if damp:
             self.quench(sim)
         ke = float(sim.kinetic_energy())

@@ -49,7 +49,9 @@ def start_cloud(n, container, rng, y0=1.2, gap=1.55, dy=0.15, lookback=14, clear
 
 def insert_bodies(sim, body, pos, quat, vel):
     """Append bodies (positions, quaternions, velocities) to ``sim`` (N grows; the bodies
-    already in keep their state; the warm-start cache is cleared, as any change of N does)."""
+    already in keep their state and, under an explicit law such as Hertz, their contact
+    histories (``Simulation.keep_contact_histories``); the impulse engine's warm-start cache
+    is cleared, as any change of N does)."""
     n0 = sim.num_particles()
     if n0:
         P = np.vstack([sim.get_positions(), pos])
@@ -67,6 +69,8 @@ def insert_bodies(sim, body, pos, quat, vel):
     if n0 or np.any(vel):
         sim.set_velocities(V)
         sim.set_angular_velocities(W)
+    if n0:
+        sim.keep_contact_histories()
 
 
 def new_simulation(register, container, material, wall_material, iterations, gravity, dt,

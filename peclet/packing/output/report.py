@@ -215,6 +215,17 @@ def _element_doc(res):
     return dict(name=name, params=params, text=text, shell_probes=int(len(res.element.shell)))
 
 
+def _contact_doc(res):
+    """The Hertz law's step rule as the run used it: substeps K per protocol step, the
+    substep (time units), the element's Rayleigh time and the line the command prints."""
+    from ..bed.contact import parse_contact
+
+    law, dt = parse_contact(res.spec["contact"]), float(res.spec["protocol"]["dt"])
+    k, sub, tr = law.schedule(res.element, dt)
+    return dict(law.to_spec(), substeps=k, dt=sub, rayleigh_time=tr,
+                text=law.describe(res.element, dt))
+
+
 def write_results(path, res, rep):
     """``results.json``: the run's spec, its figures (steps, seconds, state hash) and ``rep``."""
     doc = dict(spec=res.spec, run=dict(steps=res.steps, seconds=res.seconds,
@@ -223,6 +234,8 @@ def write_results(path, res, rep):
                                        complete=res.complete, state_sha256=res.state_hash(),
                                        ke_end=float(res.ke[-1]) if res.ke else None),
                analysis=rep)
+    if "contact" in res.spec:
+        doc["run"]["contact"] = _contact_doc(res)
     doc["element"] = _element_doc(res)
     return write_json(path, doc)
 
@@ -234,6 +247,8 @@ def table(res, rep):
     rows = [("element, count", f"{rep['element']}, {rep['count']} (D = {rep['d_elem']:g})"),
             ("container", rep["container"]),
             ("protocol", f"{sp['protocol']['kind']}"),
+            ("contact law", "impulse" if "contact" not in sp
+             else _contact_doc(res)["text"][len("contact "):]),
             ("material (e_n, mu) / wall", f"({m['e_n']:g}, {m['mu']:g}) / "
                                           f"({wm['e_n']:g}, {wm['mu']:g})"),
             ("steps, wall-clock", f"{res.steps} steps, {res.seconds:.1f} s "
