@@ -13,6 +13,8 @@ scale that would bring it to 1: a file in mm read as if in element units is the 
 """
 from __future__ import annotations
 
+import functools
+import hashlib
 import math
 import os
 
@@ -127,10 +129,15 @@ def file_element_text(value, arg="element"):
 
 def file_digest(text):
     """SHA-256 (hex) of the file an element text from :func:`file_element_text` names: its
-    contents, so that an edited file is a different element."""
-    import hashlib
-
+    contents, so that an edited file is a different element. Read once per version of the
+    file (its size and modification time) in a process."""
     path = text if text.endswith(".npz") else _split(text)[0]
+    st = os.stat(path)
+    return _digest(path, st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def _digest(path, size, mtime_ns):
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
