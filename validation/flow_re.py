@@ -1,9 +1,10 @@
 """The flow solver beyond creeping flow, thin walls and grown packs (issue 44).
 
-    python validation/flow_re.py [--quick] [--json FILE] [--rungs tube,grown,curve]
+    python validation/flow_re.py [--quick] [--json FILE] [--rungs tube,grown,curve,stability]
                                  [--tube-resolutions 8,16] [--grown-pack grown.npz]
-                                 [--curve-pack pack.npz] [--curve-resolution 8]
-                                 [--reynolds 0.01:100:8]
+                                 [--curve-pack pack.npz] [--curve-container column:4]
+                                 [--curve-resolution 8] [--reynolds 0.01:100:8]
+                                 [--stability-reynolds 3,10,20,30]
 
 1. ``tube``: a referee for thin walls. One tube (outer diameter D, wall 0.12 D: the page
    ring's wall) along x in a periodic box 1.5 D square, 1 D long; outside the tube a plate 0.25
@@ -21,8 +22,16 @@
    --protocol grow``; quick: 40 spheres grown here) through :func:`peclet.flow.permeability`
    along x, y and z: k against Carman-Kozeny, the Kozeny constant and Happel's.
 3. ``curve``: dP/L against Re (:func:`peclet.flow.pressure_drop_curve`) for ``--curve-pack``
-   (default: the grown pack) with the Forchheimer fit and the ratios to Ergun and Eisfeld &
-   Schnitzlein.
+   (default: the grown pack; ``--curve-container`` the container it was made in, e.g.
+   column:4 for the 90 spheres of ``validation.flow.rained_column(4, 90, seed=3)``) with the
+   Forchheimer fit and the ratios to Ergun and Eisfeld & Schnitzlein.
+4. ``stability``: why the curve stops. The same curve (``--stability-reynolds``, the curve's
+   pack, container and resolution) with each wall rule and magic product of
+   :data:`STABILITY_VARIANTS`: the corrected linear rule (the curve's), plain Bouzidi, halfway
+   bounce-back on every link, and bounce-back with Lambda = 1/12. Per variant the highest
+   steady Re, the first point that was not steady, its status and its cell Reynolds number
+   max|u| / nu. If halfway bounce-back stops where the interpolated rules stop, the wall
+   rule is not what limits the curve.
 
 Prints tables; ``--json`` writes every number.
 """
@@ -102,14 +111,46 @@ def grown_bed(path, resolution=8, axes=("x", "y", "z"), tol=1e-6):
     return rows
 
 
-def curve(path, reynolds, resolution=8, axis="y", max_steps=200_000, tol=1e-6):
-    """:func:`peclet.flow.pressure_drop_curve` of ``path``: its summary."""
+def curve(path, reynolds, resolution=8, axis="y", max_steps=200_000, tol=1e-6,
+          container=None):
+    """:func:`peclet.flow.pressure_drop_curve` of ``path`` (in ``container``): its summary."""
     from peclet.flow import pressure_drop_curve
     from peclet.flow.output import curve_table
     c = pressure_drop_curve(path, reynolds, resolution=resolution, axis=axis, tol=tol,
-                            max_steps=max_steps)
+                            max_steps=max_steps, container=container)
     print(curve_table(c), flush=True)
     return c.summary()
+
+
+#: (scheme, magic) of the ``stability`` rung: the curve's rule first.
+STABILITY_VARIANTS = (("linear", 0.25), ("bouzidi", 0.25), ("bounce_back", 0.25),
+                      ("bounce_back", 1.0 / 12.0))
+
+
+def stability(path, reynolds, resolution=8, axis="y", container=None, tol=1e-5,
+              max_steps=40_000, variants=STABILITY_VARIANTS):
+    """The ``stability`` rung (module docstring): per (scheme, magic) of ``variants`` one
+    :func:`peclet.flow.pressure_drop_curve` over ``reynolds``; the rows."""
+    from peclet.flow import pressure_drop_curve
+    rows = []
+    for scheme, magic in variants:
+        t0 = time.perf_counter()
+        c = pressure_drop_curve(path, reynolds, resolution=resolution, axis=axis, tol=tol,
+                                max_steps=max_steps, container=container, scheme=scheme,
+                                magic=magic)
+        ok = [p for p in c.points if p.status == "steady"]
+        bad = next((p for p in c.points if p.status not in ("steady", "not run")), None)
+        rows.append({"scheme": scheme, "magic": magic, "Re_steady": ok[-1].Re if ok else None,
+                     "cell_re_steady": ok[-1].cell_re if ok else None,
+                     "f": [p.f for p in c.points], "Re": [p.Re for p in c.points],
+                     "stop_Re_target": bad.Re_target if bad else None,
+                     "stop_status": bad.status if bad else "", "stop_nu": bad.nu if bad else None,
+                     "stop_cell_re": bad.cell_re if bad else None,
+                     "seconds": time.perf_counter() - t0})
+        print(f"   {scheme}, Lambda {magic:.4g}: steady to Re "
+              f"{rows[-1]['Re_steady']}, then {rows[-1]['stop_status'] or 'nothing'} at Re "
+              f"{rows[-1]['stop_Re_target']} (cell Re {rows[-1]['stop_cell_re']})", flush=True)
+    return rows
 
 
 def grow_spheres(out, count=40, seed=3):
@@ -126,7 +167,7 @@ def _table(rows, cols):
                   for r in rows], cols)
 
 
-RUNGS = ("tube", "grown", "curve")
+RUNGS = ("tube", "grown", "curve", "stability")
 
 
 def _rungs(text):
@@ -157,10 +198,14 @@ def main(argv=None):
                     help="cells per D, grid study along x (default 8,16; quick 6)")
     ap.add_argument("--curve-pack", type=vargs.input_file, default=None,
                     help="the curve's pack (default the grown pack)")
+    ap.add_argument("--curve-container", default=None,
+                    help="the curve's container, e.g. column:4 (default: the pack's own)")
     ap.add_argument("--curve-resolution", type=vargs.integer(4, 64), default=8,
                     help="cells per D (default 8)")
     ap.add_argument("--curve-axis", default="y", help="x, y or z (default y)")
     ap.add_argument("--reynolds", default="0.01:100:8", help="lo:hi:n (default 0.01:100:8)")
+    ap.add_argument("--stability-reynolds", default="3,10,20,30",
+                    help="the stability rung's Reynolds numbers (default 3,10,20,30)")
     a = ap.parse_args(argv)
     rungs = a.rungs
     warnings.simplefilter("ignore")
@@ -172,7 +217,7 @@ def main(argv=None):
                                              "k_exact_D2", "err", "bore_l2", "outside_speed",
                                              "steps"]), flush=True)
     grown = a.grown_pack
-    if grown is None and rungs & {"grown", "curve"}:
+    if grown is None and rungs & {"grown", "curve", "stability"}:
         grown = grow_spheres(tempfile.mkdtemp(prefix="peclet-grown-"), 40 if a.quick else 180)
     if "grown" in rungs:
         rs = a.grown_resolutions or ((6,) if a.quick else (8, 16))
@@ -193,7 +238,13 @@ def main(argv=None):
     if "curve" in rungs:
         path = a.curve_pack or grown
         print(f"\n3. pressure drop curve, {path}", flush=True)
-        out["curve"] = curve(path, a.reynolds, a.curve_resolution, a.curve_axis)
+        out["curve"] = curve(path, a.reynolds, a.curve_resolution, a.curve_axis,
+                             container=a.curve_container)
+    if "stability" in rungs:
+        path = a.curve_pack or grown
+        print(f"\n4. why the curve stops, {path} at D/{a.curve_resolution}", flush=True)
+        out["stability"] = stability(path, a.stability_reynolds, a.curve_resolution,
+                                     a.curve_axis, container=a.curve_container)
     if a.json:
         with open(a.json, "w") as fh:
             json.dump(out, fh, indent=1, default=float)

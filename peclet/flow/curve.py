@@ -45,12 +45,43 @@ choice of the viscosity nu and the force g:
   reached), ``diverged`` (non-finite populations), ``mach`` (max|u| above the bound after the
   run, or the bound unreachable with nu >= nu_min). Only ``steady`` points enter the fit.
 
-**Resolution limit** (measured, D/8, grown 40-sphere cell, corrected linear rule, Lambda =
-1/4): steady up to Re 4.9 (max|u| / nu = 8.9 there), diverged at Re 8 (predicted 14) and 21.5
-(38) from the previous field and from rest alike, the growth starting at near-wall nodes with
-10-11 cut links. The reachable Re grows with the resolution: 90 spheres in column:4 were
-steady to Re 8.5 at D/8 and 17.7 at D/12 (both diverged at the next point, max|u| / nu 49 and
-34). A run that diverges is reported as such with its predicted cell Reynolds number.
+**Resolution limit** (measured; the wall rule is not the limit). The runs are steady up to a
+cell Reynolds number max|u| / nu of ~10-35 and diverge above it: at D/8 a grown 40-sphere cell
+was steady to Re 4.9 and diverged at Re 8; 90 spheres in column:4 were steady to Re 8.5 at D/8
+and 17.7 at D/12 and diverged at Re 30 at both. Since max|u| / U is ~11-14 in these beds
+(set by the bed, not the lattice) and Re = U N / nu, the cell Reynolds number is ~(11-14) Re /
+N whatever the Mach number: Re 100 needs ~1100-1400 / N, beyond the stable range below D/40.
+What was measured, one change at a time (scratch stepping at fixed Re, nu and force, from
+rest), on the column at D/8, Re 30, nu = 2.66e-3 (tau+ 0.508):
+
+- the wall rule: halfway bounce-back on every cut link (``scheme="bounce_back"``), plain
+  Bouzidi and the corrected linear rule all diverged (at D/12, Re 30 bounce-back ran 2000
+  steps, not converged, where the corrected rule diverged by step 600); on the column the
+  growth starts at the wrapped window's seam near the column wall (a slot between spheres cut
+  flat by the window, a jet of max|u| ~ 0.1), a smooth local runaway (|u| +0.4 % per step, a
+  transverse component appearing), not a period-2 or checkerboard mode; at D/12, Re 30 the
+  corrected rule diverged from a seam node with 8 cut links. On the grown cell (no seam) the
+  growth started at sliver nodes (10-11 cut links, measured before): giving every node with >=
+  7 (or >= 9) cut links halfway bounce-back ran Re 8 at D/8 for 6000 steps without diverging
+  (not converged), but moved the creeping f by -7 % (1472 to 1370 with 9: at D/8 a quarter of
+  that bed's fluid nodes have >= 9 cut links), and at D/12 on the column (22 % of nodes with >=
+  7) it still diverged at Re 100. Capping the parabolic correction's coefficient at 1 gave a
+  'steady' Re 8 with max|u| = 0.68 c_s at one node (not a fix), at 1.5 it diverged; switching
+  only the links whose opposite is also cut to bounce-back did not help;
+- the magic product (bounce-back walls, D/8, Re 30): 1/2 diverged by step 500, 1/4 at step 941,
+  3/16 by 1500, 1/12 by 3500; 0.01 ran its 1500 steps. At D/12, Re 100 (nu = 1.42e-3) bounce-
+  back diverged by step 500 with 1/4, by 1000 with 1/12 and by 2000 with 0.01. With the
+  interpolated rules small products diverge sooner (1/12: by step 500 at D/8, Re 30): the
+  correction's coefficients grow as 1 / (2 Lambda + tau+ - 1/2);
+- the collision's symmetric ghost moments: projecting the symmetric non-equilibrium onto its
+  second-order Hermite part (the stress; a regularised TRT) left the creeping f unchanged to 5
+  digits and did not delay the divergence;
+- the Mach number: halving it (nu halved at the same Re) did not save the corrected rule.
+
+So the scheme's stable cell Reynolds number, not its wall rule, bounds the curve: Re 100
+needs a finer lattice (about D/40 on these beds) or a collision operator with a wider stable
+range (regularised in its third moments, cumulant or entropic), which this solver does not
+have. The curve reports ``diverged`` with the predicted cell Reynolds number and stops.
 
 **Forchheimer fit** (:func:`forchheimer_fit`): dP/L = (mu / k) U + beta rho U^2, in the
 dimensionless form ``Pi = (dP/L) D^3 / (rho nu^2) = Re / k + beta Re^2`` (k in D^2, beta in

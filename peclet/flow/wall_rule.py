@@ -1,8 +1,10 @@
 """The wall rule of every cut link of a :class:`~peclet.flow.geometry.LatticeGeometry`, as the
 table :func:`link_table` the lattice-Boltzmann step (:mod:`peclet.flow.solver`) pulls through:
 Bouzidi, Firdaouss & Lallemand's interpolated bounce-back (linear or quadratic) with a parabolic
-correction (:func:`_correction`), and :func:`fallback_counts` of the links whose stencil was
-incomplete. Lattice units (cell 1, step 1)."""
+correction (:func:`_correction`), plain halfway bounce-back (``"bounce_back"``: every cut link
+reflects at the node, the wall put halfway along the link whatever its fraction q; the
+staircase reference), and :func:`fallback_counts` of the links whose stencil was incomplete.
+Lattice units (cell 1, step 1)."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,7 +15,7 @@ from .lattice import C, OPP, W
 
 __all__ = ["link_table", "fallback_counts", "SCHEMES"]
 
-SCHEMES = ("linear", "quadratic", "bouzidi")
+SCHEMES = ("linear", "quadratic", "bouzidi", "bounce_back")
 
 
 def _correction(q, tp, tm, rule):
@@ -63,7 +65,10 @@ def link_table(geo, scheme="linear", omegas=(1.0, 1.0), force=(0.0, 0.0, 0.0)):
     (S-_i = 3 w_i c_i.F, the antisymmetric force term) that makes the rule exact for a
     velocity parabolic along the link at uniform density under TRT, for any q, viscosity and
     magic parameter (see :func:`_correction`); "bouzidi" is the plain linear rule (second
-    order, its error grows with the magic parameter and q). Where a node the stencil needs
+    order, its error grows with the magic parameter and q); "bounce_back" is halfway
+    bounce-back on every cut link, ``f*_o(x)`` (no interpolation, no correction: the wall sits
+    halfway along every link, exact for a straight wall at q = 1/2 with magic 3/16, first
+    order in h for any other q). Where a node the stencil needs
     is missing (solid, or behind another cut link) the quadratic rule falls back to the
     linear one, and the linear one for q < 1/2 without x_f to bounce-back from the node
     itself, f*_o(x), with its own correction (counted by :func:`fallback_counts`).
@@ -84,6 +89,9 @@ def link_table(geo, scheme="linear", omegas=(1.0, 1.0), force=(0.0, 0.0, 0.0)):
     beta = np.zeros(k)
     ld[:] = o[:, None]
     ln[:] = x[:, None]
+    if scheme == "bounce_back":
+        lc[:, 0] = 1.0
+        return lc, ld, ln, la, np.zeros(k)
     lo = q < 0.5
     quad = scheme == "quadratic"
 
@@ -119,8 +127,10 @@ def link_table(geo, scheme="linear", omegas=(1.0, 1.0), force=(0.0, 0.0, 0.0)):
 
 def fallback_counts(geo, scheme="linear"):
     """{"linear": links where the quadratic stencil was incomplete, "bounce_back": links on
-    bounce-back from the node itself} for ``scheme``."""
+    bounce-back from the node itself} for ``scheme`` (every link with "bounce_back")."""
     q, xf, xff = geo.link_q, geo.link_ff, geo.link_fff
+    if scheme == "bounce_back":
+        return {"linear": 0, "bounce_back": int(len(q))}
     half = int(np.count_nonzero((q < 0.5) & (xf < 0)))
     if scheme != "quadratic":
         return {"linear": 0, "bounce_back": half}
