@@ -69,12 +69,21 @@ def test_a_growth_run_is_the_same_at_one_and_two_threads():
 
 
 CASES = [
-    (["--container", "box:4"], "--container", "left out with --protocol grow"),
     (["--wall-mu", "0.3"], "--wall-mu", "a periodic cube has no walls"),
     (["--rate", "0"], "--rate", "(0, 10]"),
     (["--rate", "x"], "--rate", "a number"),
     (["--count", "1"], "--count", "[2, 100000]"),
     (["--element", "no_such"], "--element", ""),
+    # closed containers (issue 41, item 5; their runs: tests/test_grow_walled.py)
+    (["--container", "box:4"], "--container", "box:L is the periodic box"),
+    (["--container", "walled:3,3"], "--container", "'column:N'"),
+    (["--container", "box:2x2x2", "--count", "30"], "--container",
+     "start fraction N V_env / V <= 0.4"),
+    (["--container", "box:4x4x4", "--count", "30", "--target-phi", "0.2"], "--target-phi",
+     "above the start fraction 0.2454"),
+    (["--target-phi", "1.5"], "--target-phi", "in (0, 1)"),
+    (["--container", "column:1"], "--container", "[1.5, 10000]"),
+    (["--wall-restitution", "0.3"], "--wall-restitution", "a periodic cube has no walls"),
 ]
 
 

@@ -38,6 +38,9 @@ CASES = [
     ("thickness", ["--workers", "0"], "--workers", "[1, 64]"),
     ("spheres", ["--out", "/nonexistent/dir/x.json"], "--out", "does not exist"),
     ("flow", ["--page-pack", "/nonexistent/pack.npz"], "--page-pack", "an existing"),
+    ("bean", ["--count", "-1"], "--count", "[0, 100000]"),
+    ("bean", ["--spacings", "0.04,1"], "--spacings", "each in [0.002, 0.2]"),
+    ("bean", ["--grown", "/nonexistent/results.json"], "--grown", "does not exist"),
 ]
 
 

@@ -33,7 +33,8 @@ def add_bed_options(parser, protocols=("page", "rain")):
     ``protocols``: the ones the command offers (the help lists them)."""
     parser.add_argument("--element", default="pall_ring", help=ELEMENT_HELP)
     parser.add_argument("--container", default="box:3.5", help=CONTAINER_HELP)
-    extra = (" (grow: a periodic cube sized by --count, no --container)"
+    extra = (" (grow: a periodic cube sized by --count without --container, or a closed "
+             "box:AxBxC or column:N, in D, grown in by the same compression)"
              if "grow" in protocols else "")
     parser.add_argument("--protocol", default="page",
                         help=" | ".join(protocols) + " (default page)" + extra)

@@ -38,7 +38,7 @@ def add_parser(sub):
                        "figures and exports into --out.")
     p.set_defaults(func=run)
     add_bed_options(p, ("page", "rain", "grow"))
-    p.set_defaults(container=None)      # grow takes none; page and rain default to box:3.5
+    p.set_defaults(container=None)      # grow: the periodic cube; page and rain: box:3.5
     add_contact_options(p)
     p.add_argument("--count", default="48", help="number of elements (default 48)")
     p.add_argument("--mu", default="0.5", help="element-element friction (default 0.5)")
@@ -58,6 +58,9 @@ def add_parser(sub):
     p.add_argument("--rate", default=None, help="grow only: starting growth rate d ln(phi)/dt "
                    "in (0, 10], at least 1e-4 (default 0.5; the overlap control slows it near "
                    "jamming)")
+    p.add_argument("--target-phi", default=None, help="grow only: stop when the envelope "
+                   "fraction of the container reaches this, in (start fraction, 1) (default: "
+                   "grow to jamming)")
     p.add_argument("--out", default=None, help="output directory (default ./pack_results; "
                    "with --resume: the resumed run's)")
     p.add_argument("--threads", default=None, help="numba threads (default: numba's)")
@@ -124,7 +127,7 @@ def _renamed(exc, flag):
 #: ensemble`` refuses ``--steps-scale`` with rain), never silently ignored.
 PROTOCOL_OPTIONS = {"--steps-scale": ("steps_scale", "page"), "--batch": ("batch", "rain"),
                     "--insert-every": ("insert_every", "rain"), "--drop": ("drop", "rain"),
-                    "--rate": ("rate", "grow")}
+                    "--rate": ("rate", "grow"), "--target-phi": ("target_phi", "grow")}
 
 #: Most Monte Carlo points per bulk window: each costs about 100 bytes at the sampling's peak
 #: (coordinates, the counts, the window's temporaries), so 10^7 are about 1 GB.
@@ -330,37 +333,49 @@ def run(args):
         return _finish(res, out, args, cdir, previous)
 
 
+#: GrowSpec fields named by their flags in the errors of ``--protocol grow``.
+GROW_FLAGS = {"count": "--count", "rate": "--rate", "container": "--container",
+              "target_phi": "--target-phi", "wall_mu": "--wall-mu",
+              "wall_e_n": "--wall-restitution", "element": "--element"}
+
+
 def _grow(args, count, seed, mu, e, threads):
-    """``--protocol grow``: growth to jamming in a periodic cube (peclet.packing.experiments.grow)."""
+    """``--protocol grow``: growth to jamming or to --target-phi, in a periodic cube (no
+    --container) or a closed box:AxBxC / column:N (peclet.packing.experiments.grow)."""
     from peclet.packing.experiments import grow as growth
 
-    if args.container is not None:
-        raise PecletArgumentError("--container", "left out with --protocol grow (it grows the "
-                                  "bed in a periodic cube sized by --count)", args.container)
-    for flag, given in (("--wall-mu", args.wall_mu), ("--wall-restitution",
-                                                      args.wall_restitution)):
-        if given is not None:
-            raise PecletArgumentError(flag, "left out with --protocol grow (a periodic cube "
-                                      "has no walls)", given)
     rate = 0.5 if args.rate is None else _num("--rate", args.rate, float, lo=0.0, hi=10.0,
                                               lo_open=True)
     floor = growth.GrowSpec().gamma_min
     if rate < floor:          # the spec would blame gamma_min, which the CLI does not set
         raise PecletArgumentError("--rate", f"in (0, 10] and >= {floor:g} (the rate below which "
                                   "the bed counts as jammed)", rate)
-    if isinstance(args.element, str) and args.element.endswith(".npz"):
-        raise PecletArgumentError("--element", "a library element with --protocol grow",
-                                  args.element)
+    target = None if args.target_phi is None else _num("--target-phi", args.target_phi, float,
+                                                       lo=0.0, hi=1.0, lo_open=True,
+                                                       hi_open=True)
+    walls = {k: None if v is None else _num(flag, v, float, lo=0.0)
+             for k, flag, v in (("wall_mu", "--wall-mu", args.wall_mu),
+                                ("wall_e_n", "--wall-restitution", args.wall_restitution))}
     from peclet.packing.bed import api
-    try:
-        api.resolve_element(args.element)
-    except PecletArgumentError as exc:
-        raise _renamed(exc, "--element") from None
+    from peclet.packing.bed.user_shapes import is_user_file
+    if is_user_file(args.element):          # sampled once, in the run (seconds for a mesh)
+        _missing_file("--element", args.element.partition(":")[0], "a mesh file")
+    else:
+        try:
+            api.resolve_element(args.element)
+        except PecletArgumentError as exc:
+            raise _renamed(exc, "--element") from None
     spec = growth.GrowSpec(element=args.element, count=count, rate=rate, mu=mu, e_n=e,
-                           seed=seed).checked({"count": "--count", "rate": "--rate"})
+                           seed=seed, container=args.container or "periodic",
+                           target_phi=target, **walls).checked(GROW_FLAGS)
     out, previous = check_output_dir(args.out or "pack_results", growth.OUTPUTS,
                                      args.overwrite, "--out")
-    res = growth.grow(spec, progress=not args.quiet, threads=threads)
+    try:
+        res = growth.grow(spec, progress=not args.quiet, threads=threads)
+    except PecletArgumentError as exc:
+        if exc.argument not in GROW_FLAGS:
+            raise
+        raise _renamed(exc, GROW_FLAGS[exc.argument]) from None
     with recording(out, growth.OUTPUTS):
         growth.write_outputs(res, out, previous, figures=not args.no_figures)
     print(growth.table(res))

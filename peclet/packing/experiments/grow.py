@@ -1,4 +1,5 @@
-"""Growth to jamming: a dense, isotropic bed in a periodic cube (issue 23, item 4).
+"""Growth to jamming or to a target fraction, in a periodic cube (issue 23, item 4) or in a
+closed box or column (issue 41, item 5).
 
 Lubachevsky–Stillinger style: bodies start at random in a dilute periodic cube (envelope fraction
 ``phi_start``) and the packing fraction phi rises at a relative rate gamma (d ln phi / dt) with a thermostat on the motion,
@@ -12,6 +13,16 @@ random close packing), then a velocity-rescaling thermostat pulls the translatio
 rotational temperature back towards T (relaxation time ``tau``): the heat that compression
 pumps in is taken out, as LS's event-driven rescaling does.
 
+Containers (:mod:`~peclet.packing.experiments.grow_containers`): the periodic cube above, or
+``box:AxBxC`` / ``column:N``, closed by walls that the same compression moves inward by their
+poses (growing the bodies in a fixed container is, up to a change of unit, the same as mapping
+the centres affinely and shrinking the container: the shape is built once); the gate, the
+thermostat and the stop are the same for every container, and body-wall overlaps gate the
+rate as body-body ones do. ``target_phi`` (an envelope fraction of the container's current
+volume) stops the compression there: the container is shrunk exactly to it, the bed is stepped
+on until its largest overlap is below ``overlap_lo``, then quenched (no opening: phi is the
+target). Without it the run stops at jamming, as before.
+
 Overlap-driven slow-down. Every ``check_every`` steps the largest overlap (the engine's
 penetration depth, in D) is read: above ``overlap_hi`` the compression pauses and gamma is
 halved; while paused and still above ``overlap_lo``, gamma shrinks by 10 % a check; below
@@ -22,11 +33,13 @@ zeroed, overlaps relaxed); a bed of spheres is opened until no overlap exceeds
 ``FINAL_OVERLAP`` (1e-4 D), a bed of composed elements is measured as it jammed (their contacts
 rest on probes, and the position solve leaves about 1e-3 D of overlap in it).
 
-Measurements: phi (N V / L^3, V the element's volume), the mean coordination Z of the engine's
-contacts with a gap below ``gap`` D (default 1e-3 D; the pairs of bodies, each pair once per
-body, across the periodic faces too), the rattlers (Z < 4 for frictionless spheres: d + 1 in
-3-D), and for the centres the pair correlation g(r) (minimum images, bins of 0.01 D) with its
-first peak's position and height.
+Measurements: phi (N V / V_container, V the element's volume), f_env (with the envelope
+volume), the mean coordination Z of the engine's contacts with a gap below ``gap`` D (default
+1e-3 D; the pairs of bodies, each pair once per body, across the periodic faces too), the
+bodies touching a wall, the largest body-body and body-wall overlaps, the rattlers (Z < 4 for
+frictionless spheres: d + 1 in 3-D), and in the periodic cube the pair correlation g(r) of the
+centres (minimum images, bins of 0.01 D) with its first peak's position and height (a walled
+bed's g(r) would be biased by its walls: not computed).
 
 Units: lengths in the element's diameter D, time such that the thermal speed sqrt(T) is 1
 D/time by default; a body's mass is its volume (density 1).
@@ -39,7 +52,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from peclet.core.spec import Float, Int, Spec, Text, field
+from peclet.core.spec import Custom, Float, Int, Spec, Text, field
+from peclet.core.validation import PecletArgumentError, check_float
+
+from .grow_containers import make_container, parse_grow_container
 
 __all__ = ["GrowSpec", "grow", "pair_correlation", "periodic_coordination", "FINAL_OVERLAP",
            "write_outputs", "table", "OUTPUTS"]
@@ -51,14 +67,38 @@ OUTPUTS = ("results.json", "grown.npz", "grow.png")
 FINAL_OVERLAP = 1e-4
 
 
+def _container_rule(arg, value, ctx):
+    parse_grow_container(value, arg)
+    return value
+
+
+def _wall_rule(own):
+    """The check of a wall material field: refused with the periodic cube (it has no walls),
+    else the body-body ``own`` field's value when None."""
+    def rule(arg, value, ctx):
+        if ctx.value("container") == "periodic":
+            if value is not None:
+                raise PecletArgumentError(arg, "left out with the periodic cube (a periodic "
+                                          "cube has no walls)", value)
+            return None
+        if value is None:
+            return ctx.value(own)
+        return check_float(arg, value, 0.0, 1.0 if own == "e_n" else 10.0)
+    return rule
+
+
 @dataclass(frozen=True)
 class GrowSpec(Spec):
     """A growth run (see the module notes); :meth:`checked` (from :class:`~peclet.core.spec.
-    Spec`) checks every field as declared here (PecletArgumentError naming ``names[field]``)."""
+    Spec`) checks every field as declared here (PecletArgumentError naming ``names[field]``).
+    ``container``: "periodic", "box:AxBxC" or "column:N" (D); ``target_phi``: None (grow to
+    jamming) or the envelope fraction to stop at; ``wall_e_n``, ``wall_mu``: the walls'
+    restitution and friction (default the bodies' ``e_n``, ``mu``; walled containers only)."""
 
     check_first = ("element", "overlap_lo")
 
-    element: str = field("sphere", Text("'sphere' or a library element name"))
+    element: str = field("sphere", Text("a library element name (NAME:KEY=V,...), a mesh file "
+                                        "or an .npz (a grid or a flat encoding)"))
     count: int = field(500, Int(2, 100_000))
     phi_start: float = field(0.15, Float(0.0, 0.4, lo_open=True))
     rate: float = field(0.5, Float(0.0, 10.0, lo_open=True))
@@ -74,6 +114,10 @@ class GrowSpec(Spec):
     max_steps: int = field(200_000, Int(1, 10 ** 8))
     gap: float = field(1e-3, Float(0.0, 0.1, lo_open=True))
     seed: int = field(1, Int(0, 2 ** 63 - 1))
+    container: str = field("periodic", Custom(_container_rule))
+    target_phi: float = field(None, Float(0.0, 1.0, lo_open=True, hi_open=True, if_none=None))
+    wall_e_n: float = field(None, Custom(_wall_rule("e_n")))
+    wall_mu: float = field(None, Custom(_wall_rule("mu")))
 
 
 def _envelope(model):
@@ -82,13 +126,11 @@ def _envelope(model):
     return env if np.isfinite(env) and env > 0.0 else float(model.volume)
 
 
-def _start(sim, model, spec, rng):
-    """Random positions (uniform in the cube) and orientations, overlaps relaxed."""
+def _start(sim, model, spec, rng, cont):
+    """Random positions (uniform in the container) and orientations, overlaps relaxed."""
     n = spec.count
     d = model.d
-    L = (n * _envelope(model) / spec.phi_start) ** (1.0 / 3.0)
-    sim.set_domain([0.0, 0.0, 0.0], [L, L, L])
-    P = rng.uniform(0.0, L, size=(n, 3))
+    L, P = cont.place(sim, rng)
     Q = rng.normal(size=(n, 4)) if not model.sphere else np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
     Q /= np.linalg.norm(Q, axis=1)[:, None]
     sim.set_positions(P)
@@ -119,10 +161,15 @@ def _thermostat(sim, model, spec, lam_cap=2.0):
         sim.set_angular_velocities(sim.get_angular_velocities() * lam)
 
 
-def _compress(sim, L_old, L_new):
-    f = L_new / L_old
-    sim.set_positions(np.minimum(sim.get_positions() * f, np.nextafter(L_new, 0.0)))
-    sim.set_domain([0.0, 0.0, 0.0], [L_new, L_new, L_new])
+def largest_overlaps(sim, d):
+    """(largest body-body, largest body-wall) penetration depth of the current contacts, in
+    ``d`` (0 when none overlaps)."""
+    c = sim.detect_contacts()
+    out = []
+    for sel in (c["body_b"] >= 0, c["body_b"] < 0):
+        depth = c["depth"][sel]
+        out.append(max(0.0, float(depth.max())) / d if len(depth) else 0.0)
+    return tuple(out)
 
 
 def periodic_coordination(sim, d, gap):
@@ -158,9 +205,12 @@ def pair_correlation(P, L, r_max, dr):
 
 
 def grow(spec, progress=True, threads=None):
-    """Grow ``spec.count`` bodies to jamming (``spec`` a :class:`GrowSpec`, checked here).
-    Returns a dict: phi, z_mean, z_mean_no_rattlers, rattlers, box, steps, jammed, the g(r)
-    first peak, the phi(t) history, and ``sim`` (the quenched Simulation) and ``model``."""
+    """Grow ``spec.count`` bodies to jamming or to ``spec.target_phi`` in ``spec.container``
+    (``spec`` a :class:`GrowSpec`, checked here). Returns a dict: phi, f_env, z_mean,
+    z_mean_no_rattlers, rattlers, wall_contacts, max_overlap (and its body-body and body-wall
+    parts, in D), container (kind, sizes in D, scale), box (the periodic cube's side, D; None
+    in a walled container), steps, jammed, target_reached, the g(r) first peak (periodic),
+    the phi(t) history, and ``sim`` (the quenched Simulation) and ``model``."""
     from peclet.dem import Simulation
 
     from ..bed.progress import Progress
@@ -171,30 +221,41 @@ def grow(spec, progress=True, threads=None):
     spec = spec.checked()
     from ..bed.api import resolve_element, element_model
 
-    model = element_model(resolve_element(spec.element))
+    try:
+        model = element_model(resolve_element(spec.element))
+    except PecletArgumentError as exc:
+        if exc.argument not in ("element", "path", "mesh", "phi"):
+            raise
+        raise PecletArgumentError("element", "an element grow can build", spec.element,
+                                  str(exc)) from None
+    cont = make_container(spec, model, _envelope(model))
     d = model.d
     rng = np.random.default_rng(spec.seed)
     sim = Simulation(spec.count)
-    sim.enable_periodicity(True, True, True)
+    if cont.periodic:
+        sim.enable_periodicity(True, True, True)
     sim.set_gravity(0.0, 0.0, 0.0)
     sim.set_material_params(spec.e_n, 0.0, spec.mu)
     sim.set_solver_iterations(10, 8)
     model.register(sim)
-    L = _start(sim, model, spec, rng)
+    L = _start(sim, model, spec, rng, cont)
     sim.set_dt(spec.dt)
     vol = spec.count * model.volume
     env = spec.count * _envelope(model)
+    L_stop = None if spec.target_phi is None else cont.size_at(env, spec.target_phi)
     gamma = spec.rate
     history = []
     bar = Progress(spec.max_steps, desc=f"grow {model.name}", enabled=progress)
     t0 = time.perf_counter()
-    step, jammed, paused = 0, False, False
+    step, jammed, paused, reached = 0, False, False, False
     while step < spec.max_steps:
-        if not paused:
+        if not (paused or reached):
             L_new = L * (1.0 + gamma * spec.dt) ** (-1.0 / 3.0)
-            if L_new <= 2.0 * (2.0 * model.bounding_radius) * 1.05:
-                break                              # the cube no longer holds the images apart
-            _compress(sim, L, L_new)
+            if L_stop is not None and L_new <= L_stop:
+                L_new, reached = L_stop, True            # exactly the target, then no more
+            if cont.too_small(L_new):
+                break                              # the container no longer holds the bodies
+            cont.resize(sim, L, L_new)
             L = L_new
         sim.step()
         _thermostat(sim, model, spec)
@@ -211,51 +272,72 @@ def grow(spec, progress=True, threads=None):
                 # the bed holds overlaps the position solve cannot bring below overlap_lo
                 # at this density: that too is the compression failing
                 gamma *= 0.9
-            history.append((step * spec.dt, vol / L ** 3, gamma, ov))
-            bar.update(spec.check_every, label=f"phi {vol / L ** 3:.4f}")
+            history.append((step * spec.dt, vol / cont.volume(L), gamma, ov))
+            bar.update(spec.check_every, label=f"phi {vol / cont.volume(L):.4f}")
+            if reached and ov < spec.overlap_lo:
+                break                              # at the target, its overlaps relaxed
             if gamma < spec.gamma_min:
                 jammed = True
                 break
     bar.close()
-    # quench: no motion, overlaps relaxed; measured in the final cube
+    # quench: no motion, overlaps relaxed; measured in the final container
     sim.set_velocities(np.zeros((spec.count, 3)))
     sim.set_angular_velocities(np.zeros((spec.count, 3)))
     sim.relax(100)
     # the compression stops with overlaps up to overlap_hi; for spheres (exact contacts) open
-    # the cube in small steps until they are below FINAL_OVERLAP (phi is then a packing
-    # fraction of bodies that do not overlap, to that tolerance). A composed element's
-    # contacts rest on a few probes and the position solve leaves ~1e-3 D in a jammed bed:
-    # opening the cube that far would open every contact beyond the gap of Z, so its bed is
-    # measured as jammed, with its largest overlap reported.
-    for _ in range(200 if model.sphere else 0):
+    # the container in small steps until they are below FINAL_OVERLAP (phi is then a packing
+    # fraction of bodies that do not overlap, to that tolerance), unless it stopped at the
+    # target (whose phi is the point). A composed element's contacts rest on a few probes and
+    # the position solve leaves ~1e-3 D in a jammed bed: opening the container that far would
+    # open every contact beyond the gap of Z, so its bed is measured as jammed, with its
+    # largest overlap reported.
+    for _ in range(200 if model.sphere and not reached else 0):
         ov = sim.compute_overlaps() / d
         if ov <= FINAL_OVERLAP:
             break
-        L_new = L * (1.0 + 0.5 * ov * d / L)
-        _compress(sim, L, L_new)
+        L_new = cont.opened(L, ov, d)
+        cont.resize(sim, L, L_new)
         L = L_new
         sim.relax(20)
+    out = _measure(sim, model, spec, cont, L)
+    out.update(steps=step, jammed=jammed, target_reached=reached, phi=vol / cont.volume(L),
+               f_env=env / cont.volume(L),
+               history=[dict(t=t, phi=p, gamma=gm, overlap=o) for t, p, gm, o in history],
+               seconds=time.perf_counter() - t0, state_hash=sim.state_hash(), sim=sim,
+               model=model)
+    return out
+
+
+def _measure(sim, model, spec, cont, L):
+    """The quenched bed's coordination, overlaps, container and (periodic) g(r)."""
+    d = model.d
     z, pairs = periodic_coordination(sim, d, spec.gap)
     rattler = z < 4
-    P = sim.get_positions()
-    r, g = pair_correlation(P / d, L / d, min(3.0, 0.49 * L / d), 0.01)
-    k = int(np.argmax(g))
-    return dict(spec=asdict(spec), element=model.name, phi=vol / L ** 3, f_env=env / L ** 3,
-                box=L / d,
-                steps=step, jammed=jammed, z_mean=float(z.mean()),
-                z_mean_no_rattlers=float(z[~rattler].mean()) if np.any(~rattler) else 0.0,
-                rattlers=int(rattler.sum()), max_overlap=sim.compute_overlaps() / d,
-                g_peak_r=float(r[k]), g_peak=float(g[k]), g_r=r.tolist(), g=g.tolist(),
-                count=spec.count,
-                history=[dict(t=t, phi=p, gamma=gm, overlap=o) for t, p, gm, o in history],
-                seconds=time.perf_counter() - t0, state_hash=sim.state_hash(), sim=sim,
-                model=model)
+    c = sim.detect_contacts()
+    walled = (c["depth"] > -spec.gap * d) & (c["body_b"] < 0)
+    ov_pairs, ov_walls = largest_overlaps(sim, d)
+    out = dict(spec=asdict(spec), element=model.name, count=spec.count,
+               container=cont.describe(L, d), box=L / d if cont.periodic else None,
+               z_mean=float(z.mean()),
+               z_mean_no_rattlers=float(z[~rattler].mean()) if np.any(~rattler) else 0.0,
+               rattlers=int(rattler.sum()),
+               wall_contacts=int(len(np.unique(c["body_a"][walled]))),
+               max_overlap=sim.compute_overlaps() / d, max_overlap_pairs=ov_pairs,
+               max_overlap_walls=ov_walls, g_peak_r=None, g_peak=None, g_r=[], g=[])
+    if cont.periodic:
+        P = sim.get_positions()
+        r, g = pair_correlation(P / d, L / d, min(3.0, 0.49 * L / d), 0.01)
+        k = int(np.argmax(g))
+        out.update(g_peak_r=float(r[k]), g_peak=float(g[k]), g_r=r.tolist(), g=g.tolist())
+    return out
 
 
 def write_outputs(res, out, previous=(), figures=True):
-    """``results.json``, ``grown.npz`` (the jammed bed: positions, quaternions (x, y, z, w),
-    the cube's side, the element's flat tree) and ``grow.png`` (phi against time, g(r)) into
-    ``out``, each atomically."""
+    """``results.json``, ``grown.npz`` (the bed: positions, quaternions (x, y, z, w), the
+    periodic cube's sides ``box`` or, walled, ``container_kind`` and ``container_size`` (the
+    final inner sizes, world: a box's three sides, a column's diameter and height; centred
+    on the origin), the element's flat tree) and ``grow.png`` (phi against time; g(r) or, walled,
+    the overlap against time) into ``out``, each atomically."""
     import os
 
     from peclet.core.files import atomic_write, write_json
@@ -265,9 +347,14 @@ def write_outputs(res, out, previous=(), figures=True):
     clear_outputs(out, previous)
     sim, model = res["sim"], res["model"]
     arrays = dict(positions=sim.get_positions(), quaternions=sim.get_quaternions(),
-                  box=np.array([res["box"] * model.d] * 3), node_ints=model.node_ints,
-                  node_reals=model.node_reals, root=np.int64(model.home_root),
-                  volume=np.float64(model.volume), d=np.float64(model.d))
+                  node_ints=model.node_ints, node_reals=model.node_reals,
+                  root=np.int64(model.home_root), volume=np.float64(model.volume),
+                  d=np.float64(model.d))
+    if res["box"] is not None:
+        arrays["box"] = np.array([res["box"] * model.d] * 3)
+    else:
+        arrays.update(container_kind=np.array(res["container"]["kind"]),
+                      container_size=np.array(res["container"]["size"]) * model.d)
 
     def npz(tmp):
         with open(tmp, "wb") as fh:
@@ -292,25 +379,46 @@ def _figure(path, res):
     a1.set_ylabel("packing fraction phi")
     a1.set_title(f"{res['count']} {res['element']}: phi {res['phi']:.4f}, Z {res['z_mean']:.2f}",
                  fontsize=9)
-    a2.plot(res["g_r"], res["g"], "-", color="C1", lw=0.8)
-    a2.set_xlabel("r / D")
-    a2.set_ylabel("g(r)")
-    a2.set_title(f"first peak {res['g_peak']:.1f} at r = {res['g_peak_r']:.3f} D", fontsize=9)
+    if res["g_peak"] is not None:
+        a2.plot(res["g_r"], res["g"], "-", color="C1", lw=0.8)
+        a2.set_xlabel("r / D")
+        a2.set_ylabel("g(r)")
+        a2.set_title(f"first peak {res['g_peak']:.1f} at r = {res['g_peak_r']:.3f} D",
+                     fontsize=9)
+    else:
+        a2.semilogy([x["t"] for x in h], [max(x["overlap"], 1e-9) for x in h], "-",
+                    color="C1", lw=0.8)
+        a2.set_xlabel("time")
+        a2.set_ylabel("largest overlap / D")
+        a2.set_title(res["container"]["label"], fontsize=9)
     fig.tight_layout()
     save_png(fig, path, dpi=110)
 
 
 def table(res):
     """A growth run's results as a text table."""
+    target = res["spec"]["target_phi"]
+    stop = (f"target phi {target:g} {'reached' if res['target_reached'] else 'NOT reached'}"
+            if target is not None else f"jammed {res['jammed']}")
     rows = [("element", res["element"]), ("bodies", res["count"]),
-            ("jammed", f"{res['jammed']} after {res['steps']} steps"),
+            ("container", res["container"]["label"]),
+            ("stop", f"{stop} after {res['steps']} steps"),
             ("packing fraction phi", f"{res['phi']:.4f}"),
             ("envelope fraction f_env", f"{res['f_env']:.4f}"),
             (f"mean coordination (gap {res['spec']['gap']:g} D)",
              f"{res['z_mean']:.3f} ({res['z_mean_no_rattlers']:.3f} without the "
-             f"{res['rattlers']} rattlers, Z < 4)"),
-            ("g(r) first peak", f"{res['g_peak']:.1f} at {res['g_peak_r']:.3f} D"),
-            ("largest overlap", f"{res['max_overlap']:.1e} D"),
-            ("cube side", f"{res['box']:.4f} D"), ("seconds", f"{res['seconds']:.1f}")]
+             f"{res['rattlers']} rattlers, Z < 4)")]
+    if res["g_peak"] is not None:
+        rows.append(("g(r) first peak", f"{res['g_peak']:.1f} at {res['g_peak_r']:.3f} D"))
+    else:
+        rows.append(("bodies touching a wall", f"{res['wall_contacts']}"))
+    rows += [("largest overlap", f"{res['max_overlap']:.1e} D (body-body "
+              f"{res['max_overlap_pairs']:.1e}, body-wall {res['max_overlap_walls']:.1e})")]
+    if res["box"] is not None:
+        rows.append(("cube side", f"{res['box']:.4f} D"))
+    else:
+        rows.append(("growth factor (bodies in the start container)",
+                     f"{1.0 / res['container']['scale']:.4f}"))
+    rows.append(("seconds", f"{res['seconds']:.1f}"))
     w = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:<{w}}  {v}" for k, v in rows)
