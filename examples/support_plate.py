@@ -90,7 +90,6 @@ def main(argv=None):
     from peclet.packing.bed.freeze import load_pack
     pack = load_pack(os.path.join(bed, "pack.npz"))
     y = np.asarray(pack.positions)[:, 1]
-    b, root = vessel_tree()
     res = dict(rings=int(len(y)), lowest_centre=float(y.min()),
                plate_top=PLATE_Y + 0.5 * PLATE_T,
                below_plate=int(np.sum(y < PLATE_Y)),

@@ -135,10 +135,11 @@ class PackSpec(Spec):
 
     def canonical(self):
         """Canonical JSON text (sorted keys, floats as their shortest round-trip repr)."""
+        from peclet.packing.bed.user_shapes import file_digest, is_file_element
+
         extra = {}
         if is_file_element(self.element):
             # an element from a file is its contents: an edited file is another realization
-            from peclet.packing.bed.user_shapes import file_digest
             extra["element_sha256"] = file_digest(self.element)
         return json.dumps(dict(self.as_dict(), format=FORMAT, **extra), sort_keys=True,
                           separators=(",", ":"))
@@ -194,17 +195,11 @@ def parse_seeds(text, name="seeds"):
     return sorted(seen)
 
 
-def is_file_element(element):
-    """True for an element text naming a file (a mesh or an .npz), not a library element."""
-    from peclet.packing.bed.user_shapes import is_user_file
-
-    return is_user_file(element) or element.endswith(".npz")
-
-
 def element_params(element):
     """The given construction parameters of an element text (``"pall_ring:thickness=0.024"``
     -> ``{"thickness": 0.024}``; ``"pall_ring"`` and a file element -> ``{}``), checked."""
     from peclet.packing.bed.elements import parse_element
+    from peclet.packing.bed.user_shapes import is_file_element
 
     return {} if is_file_element(element) else parse_element(element, "element")[1]
 
@@ -213,6 +208,7 @@ def sweepable_element_params(element="pall_ring"):
     """Names of the element's numeric construction parameters (a sweep may vary them; none
     for an element from a file)."""
     from peclet.packing.bed.elements import PARAMS, parse_element
+    from peclet.packing.bed.user_shapes import is_file_element
 
     if is_file_element(element):
         return ()
@@ -307,6 +303,7 @@ def make_specs(seeds, sweep=None, **fixed):
     A swept element parameter (e.g. ``thickness``) goes into the element text of each point,
     beside the parameters the fixed ``element`` already gives (which must not include it)."""
     from peclet.packing.bed.elements import element_text, parse_element
+    from peclet.packing.bed.user_shapes import is_file_element
 
     sweep = dict(sweep or {})
     clash = sorted(set(sweep) & {k for k, v in fixed.items() if v is not None})
@@ -317,7 +314,7 @@ def make_specs(seeds, sweep=None, **fixed):
     names = {f.name for f in dataclasses.fields(PackSpec)}
     elem_keys = [k for k in sweep if k not in names]
     element = fixed.get("element", PackSpec.element)
-    kind, given = (element, {}) if is_file_element(str(element)) \
+    kind, given = (element, {}) if is_file_element(element) \
         else parse_element(element, "element")
     for k in elem_keys:   # what parse_sweep checks, again for a sweep built by hand
         if k not in sweepable_element_params(kind):

@@ -25,7 +25,8 @@ from peclet.core.geom import grids
 from peclet.core.validation import PecletArgumentError
 
 __all__ = ["MESH_SUFFIXES", "EXTENT_RANGE", "CONTAINER_SPACING", "is_user_file",
-           "user_file_element", "mesh_container_tree", "grid_npz_element", "is_grid_npz"]
+           "user_file_element", "mesh_container_tree", "is_file_element",
+           "file_element_text", "file_digest", "grid_npz_element", "is_grid_npz"]
 
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
 #: Accepted largest extent of a user's element (pack units, the library's elements ~1).
@@ -106,22 +107,24 @@ def _options(value, text, arg="element"):
     return out
 
 
+def is_file_element(value):
+    """True for an element naming a file: a mesh (:func:`is_user_file`) or an ``.npz`` (a grid
+    or a flat encoding), not a library element."""
+    return isinstance(value, (str, os.PathLike)) and (
+        is_user_file(value) or os.fspath(value).endswith(".npz"))
+
+
 def file_element_text(value, arg="element"):
     """The canonical text of an element given as a file, for a spec other processes read (an
     ensemble's realizations): a mesh ``PATH[:scale=S,resolution=H]`` (options checked) or an
     ``.npz`` (a grid or a flat encoding), its path made absolute. None when ``value`` is not a
     file form (a library element). PecletArgumentError naming ``arg`` when the file does not
     exist or an option is bad."""
-    if not isinstance(value, (str, os.PathLike)):
+    if not is_file_element(value):
         return None
     text = os.fspath(value)
-    if is_user_file(text):
-        path, opts = _split(text)
-        _options(text, opts, arg)
-    elif text.endswith(".npz"):
-        path, opts = text, ""
-    else:
-        return None
+    path, opts = (_split(text) if is_user_file(text) else (text, ""))
+    _options(text, opts, arg)
     if not os.path.isfile(path):
         raise PecletArgumentError(arg, "a path to an existing mesh or .npz file", path)
     return os.path.abspath(path) + (":" + opts if opts else "")
